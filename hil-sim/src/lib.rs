@@ -1,0 +1,1 @@
+//! Host simulator of the electromagnetic actuator (in progress: see the README).

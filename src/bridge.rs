@@ -1,0 +1,423 @@
+//! H-bridge driver over `embedded-hal` 1.0: one PWM channel for the magnitude, a direction
+//! pin and an enable pin (the usual EN/PH/PWM interface of integrated H-bridge drivers).
+//!
+//! | mode | enable | direction | PWM on | PWM off | coil sees (average) |
+//! |---|---|---|---|---|---|
+//! | [`Mode::Coast`] | low | - | - | - | all switches open: the current freewheels through the diodes against the bus and decays fast |
+//! | [`Mode::Forward`] | high | high | `+Vbus` | 0 V (low sides on) | `+duty Vbus` |
+//! | [`Mode::Reverse`] | high | low | `-Vbus` | 0 V (low sides on) | `-duty Vbus` |
+//!
+//! A voltage command becomes a duty from the measured bus voltage, saturated at the bus
+//! voltage. The bridge never changes direction while enabled: a reversal is
+//! `duty 0, enable low (coast), direction, enable high, duty`. Coast is the safe state; it
+//! is also where the bridge starts.
+
+use embedded_hal::digital::OutputPin;
+use embedded_hal::pwm::SetDutyCycle;
+
+/// Bridge mode.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Mode {
+    /// Disabled, all switches open (safe state).
+    #[default]
+    Coast,
+    /// Enabled, positive coil voltage during the PWM on-time.
+    Forward,
+    /// Enabled, negative coil voltage during the PWM on-time.
+    Reverse,
+}
+
+/// What the bridge was set to.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Drive {
+    /// Mode.
+    pub mode: Mode,
+    /// PWM compare value written (0 in coast).
+    pub duty: u16,
+    /// Average coil voltage this produces at the measured bus voltage \[V\] (0 in coast,
+    /// where the coil voltage is set by the freewheeling current, not by the bridge).
+    pub u_v: f32,
+}
+
+/// A failed PWM or pin operation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Error<P, O> {
+    /// The PWM channel refused a duty.
+    Pwm(P),
+    /// A pin could not be set.
+    Pin(O),
+}
+
+/// An H-bridge: PWM magnitude, direction pin, enable pin.
+#[derive(Debug)]
+pub struct HBridge<P, O> {
+    pwm: P,
+    direction: O,
+    enable: O,
+    mode: Mode,
+    max_duty: u16,
+}
+
+type BridgeError<P, O> = Error<
+    <P as embedded_hal::pwm::ErrorType>::Error,
+    <O as embedded_hal::digital::ErrorType>::Error,
+>;
+
+impl<P: SetDutyCycle, O: OutputPin> HBridge<P, O> {
+    /// Takes the PWM channel and the two pins and puts the bridge in coast
+    /// (`duty 0`, `enable low`).
+    ///
+    /// # Errors
+    /// A failed PWM or pin operation.
+    pub fn new(pwm: P, direction: O, enable: O) -> Result<Self, BridgeError<P, O>> {
+        let max_duty = pwm.max_duty_cycle();
+        let mut bridge = Self {
+            pwm,
+            direction,
+            enable,
+            mode: Mode::Forward,
+            max_duty,
+        };
+        bridge.coast()?;
+        Ok(bridge)
+    }
+
+    /// Current mode.
+    #[must_use]
+    pub const fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Largest PWM compare value.
+    #[must_use]
+    pub const fn max_duty(&self) -> u16 {
+        self.max_duty
+    }
+
+    /// Gives the PWM channel and the pins back (bridge left as it is).
+    pub fn release(self) -> (P, O, O) {
+        (self.pwm, self.direction, self.enable)
+    }
+
+    /// Safe state: duty 0 and enable low. Does the writes even if already coasting, so
+    /// that it can be used to force the hardware into the safe state.
+    ///
+    /// # Errors
+    /// A failed PWM or pin operation (both are attempted regardless).
+    pub fn coast(&mut self) -> Result<Drive, BridgeError<P, O>> {
+        let duty = self.pwm.set_duty_cycle(0).map_err(Error::Pwm);
+        let enable = self.enable.set_low().map_err(Error::Pin);
+        self.mode = Mode::Coast;
+        duty?;
+        enable?;
+        Ok(Drive::default())
+    }
+
+    /// Applies the coil voltage `u_v` at the measured bus voltage `vbus_v`: duty
+    /// `|u| / vbus` limited to 1, direction from the sign. A zero command keeps the
+    /// present direction at duty 0 (0 V, slow decay; from coast it enables forward). A
+    /// non-finite command or a bus voltage that is not positive coasts.
+    ///
+    /// # Errors
+    /// A failed PWM or pin operation; the bridge is then driven to coast (best effort).
+    #[inline]
+    pub fn apply(&mut self, u_v: f32, vbus_v: f32) -> Result<Drive, BridgeError<P, O>> {
+        if !(u_v.is_finite() && vbus_v.is_finite() && vbus_v > 0.0) {
+            return self.coast();
+        }
+        let want = if u_v > 0.0 {
+            Mode::Forward
+        } else if u_v < 0.0 {
+            Mode::Reverse
+        } else if self.mode == Mode::Coast {
+            Mode::Forward
+        } else {
+            self.mode
+        };
+        let duty = duty_code(u_v.abs() / vbus_v, self.max_duty);
+        match self.switch(want, duty) {
+            Ok(()) => {
+                let u = f32::from(duty) / f32::from(self.max_duty.max(1)) * vbus_v;
+                Ok(Drive {
+                    mode: want,
+                    duty,
+                    u_v: if want == Mode::Reverse { -u } else { u },
+                })
+            }
+            Err(e) => {
+                // Best effort: the error to report is the first one.
+                let _ = self.coast();
+                Err(e)
+            }
+        }
+    }
+
+    fn switch(&mut self, want: Mode, duty: u16) -> Result<(), BridgeError<P, O>> {
+        if want != self.mode {
+            if self.mode != Mode::Coast {
+                // Reversal: pass through coast first.
+                self.pwm.set_duty_cycle(0).map_err(Error::Pwm)?;
+                self.enable.set_low().map_err(Error::Pin)?;
+                self.mode = Mode::Coast;
+            }
+            match want {
+                Mode::Reverse => self.direction.set_low(),
+                _ => self.direction.set_high(),
+            }
+            .map_err(Error::Pin)?;
+            self.enable.set_high().map_err(Error::Pin)?;
+            self.mode = want;
+        }
+        self.pwm.set_duty_cycle(duty).map_err(Error::Pwm)
+    }
+}
+
+/// PWM compare value for a duty fraction: nearest code, `NaN` and negatives give 0,
+/// fractions of 1 and more give `max`.
+#[inline]
+#[must_use]
+pub fn duty_code(fraction: f32, max: u16) -> u16 {
+    let max_f = f32::from(max);
+    let c = fraction * max_f + 0.5;
+    if c.is_nan() || c < 1.0 {
+        0
+    } else if c >= max_f {
+        max
+    } else {
+        // In [1, max): the truncation is the intended rounding and cannot overflow.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let code = c as u16;
+        code
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use core::cell::RefCell;
+    use embedded_hal::digital::ErrorType as PinErrorType;
+    use embedded_hal::pwm::ErrorType as PwmErrorType;
+    use embedded_hal_mock::eh1::digital::{
+        Mock as PinMock, State as PinState, Transaction as PinTx,
+    };
+    use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as PwmTx};
+    use embedded_hal_mock::eh1::MockError;
+    use std::rc::Rc;
+    use std::vec;
+    use std::vec::Vec;
+
+    // ---------- expectation mocks: exact per-device sequences ----------
+
+    #[test]
+    fn start_forward_reverse_and_coast_sequences() {
+        let max = 1000;
+        let pwm = PwmMock::new(&[
+            PwmTx::max_duty_cycle(max),
+            PwmTx::set_duty_cycle(0),    // new(): coast
+            PwmTx::set_duty_cycle(500),  // +12 V at 24 V
+            PwmTx::set_duty_cycle(250),  // +6 V, same direction: duty only
+            PwmTx::set_duty_cycle(0),    // reversal: duty 0 first
+            PwmTx::set_duty_cycle(1000), // -30 V saturates at -24 V
+            PwmTx::set_duty_cycle(0),    // coast
+        ]);
+        let dir = PinMock::new(&[PinTx::set(PinState::High), PinTx::set(PinState::Low)]);
+        let en = PinMock::new(&[
+            PinTx::set(PinState::Low),  // new(): coast
+            PinTx::set(PinState::High), // enable forward
+            PinTx::set(PinState::Low),  // reversal passes through coast
+            PinTx::set(PinState::High), // enable reverse
+            PinTx::set(PinState::Low),  // coast
+        ]);
+        let mut b = HBridge::new(pwm, dir, en).unwrap();
+        assert_eq!(b.mode(), Mode::Coast);
+        let d = b.apply(12.0, 24.0).unwrap();
+        assert_eq!((d.mode, d.duty, d.u_v), (Mode::Forward, 500, 12.0));
+        let d = b.apply(6.0, 24.0).unwrap();
+        assert_eq!((d.mode, d.duty, d.u_v), (Mode::Forward, 250, 6.0));
+        let d = b.apply(-30.0, 24.0).unwrap();
+        assert_eq!((d.mode, d.duty, d.u_v), (Mode::Reverse, 1000, -24.0));
+        let d = b.coast().unwrap();
+        assert_eq!((d.mode, d.duty), (Mode::Coast, 0));
+        let (mut pwm, mut dir, mut en) = b.release();
+        pwm.done();
+        dir.done();
+        en.done();
+    }
+
+    #[test]
+    fn bad_commands_coast() {
+        let pwm = PwmMock::new(&[
+            PwmTx::max_duty_cycle(100),
+            PwmTx::set_duty_cycle(0),
+            PwmTx::set_duty_cycle(50),
+            PwmTx::set_duty_cycle(0), // NaN command
+            PwmTx::set_duty_cycle(0), // zero bus voltage
+        ]);
+        let dir = PinMock::new(&[PinTx::set(PinState::High)]);
+        let en = PinMock::new(&[
+            PinTx::set(PinState::Low),
+            PinTx::set(PinState::High),
+            PinTx::set(PinState::Low),
+            PinTx::set(PinState::Low),
+        ]);
+        let mut b = HBridge::new(pwm, dir, en).unwrap();
+        b.apply(5.0, 10.0).unwrap();
+        assert_eq!(b.apply(f32::NAN, 10.0).unwrap().mode, Mode::Coast);
+        assert_eq!(b.apply(5.0, 0.0).unwrap().mode, Mode::Coast);
+        let (mut pwm, mut dir, mut en) = b.release();
+        pwm.done();
+        dir.done();
+        en.done();
+    }
+
+    #[test]
+    fn a_failing_pwm_is_reported_and_the_bridge_coasts() {
+        let pwm = PwmMock::new(&[
+            PwmTx::max_duty_cycle(100),
+            PwmTx::set_duty_cycle(0),
+            PwmTx::set_duty_cycle(50).with_error(MockError::Io(std::io::ErrorKind::Other)),
+            PwmTx::set_duty_cycle(0), // best-effort coast
+        ]);
+        let dir = PinMock::new(&[PinTx::set(PinState::High)]);
+        let en = PinMock::new(&[
+            PinTx::set(PinState::Low),
+            PinTx::set(PinState::High),
+            PinTx::set(PinState::Low),
+        ]);
+        let mut b = HBridge::new(pwm, dir, en).unwrap();
+        assert!(matches!(b.apply(5.0, 10.0), Err(Error::Pwm(_))));
+        assert_eq!(b.mode(), Mode::Coast);
+        let (mut pwm, mut dir, mut en) = b.release();
+        pwm.done();
+        dir.done();
+        en.done();
+    }
+
+    // ---------- stateful recorder: the global order across devices ----------
+
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    enum Op {
+        Duty(u16),
+        Dir(bool),
+        En(bool),
+    }
+
+    type Log = Rc<RefCell<Vec<Op>>>;
+
+    struct Pwm(Log);
+    impl PwmErrorType for Pwm {
+        type Error = core::convert::Infallible;
+    }
+    impl SetDutyCycle for Pwm {
+        fn max_duty_cycle(&self) -> u16 {
+            4200
+        }
+        fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
+            self.0.borrow_mut().push(Op::Duty(duty));
+            Ok(())
+        }
+    }
+
+    struct Pin(Log, bool);
+    impl PinErrorType for Pin {
+        type Error = core::convert::Infallible;
+    }
+    impl OutputPin for Pin {
+        fn set_low(&mut self) -> Result<(), Self::Error> {
+            let op = if self.1 {
+                Op::Dir(false)
+            } else {
+                Op::En(false)
+            };
+            self.0.borrow_mut().push(op);
+            Ok(())
+        }
+        fn set_high(&mut self) -> Result<(), Self::Error> {
+            let op = if self.1 { Op::Dir(true) } else { Op::En(true) };
+            self.0.borrow_mut().push(op);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn reversal_order_across_devices() {
+        let log: Log = Rc::default();
+        let mut b = HBridge::new(
+            Pwm(log.clone()),
+            Pin(log.clone(), true),
+            Pin(log.clone(), false),
+        )
+        .unwrap();
+        b.apply(10.0, 42.0).unwrap();
+        b.apply(-21.0, 42.0).unwrap();
+        assert_eq!(
+            *log.borrow(),
+            vec![
+                Op::Duty(0),
+                Op::En(false), // new(): coast
+                Op::Dir(true),
+                Op::En(true),
+                Op::Duty(1000), // 10/42 * 4200
+                Op::Duty(0),
+                Op::En(false), // through coast
+                Op::Dir(false),
+                Op::En(true),
+                Op::Duty(2100),
+            ]
+        );
+    }
+
+    /// Over any sequence of commands, the direction pin only ever changes while the bridge
+    /// is disabled, and the duty is zero whenever the bridge is (re-)enabled.
+    #[test]
+    fn direction_never_changes_while_enabled() {
+        let log: Log = Rc::default();
+        let mut b = HBridge::new(
+            Pwm(log.clone()),
+            Pin(log.clone(), true),
+            Pin(log.clone(), false),
+        )
+        .unwrap();
+        let mut x = 0x1234_5678_u32;
+        for _ in 0..10_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let u = (x % 2001) as f32 * 0.05 - 50.0;
+            if x % 97 == 0 {
+                b.coast().unwrap();
+            } else {
+                let d = b.apply(u, 24.0).unwrap();
+                assert!(d.u_v.abs() <= 24.0);
+                assert!(d.duty <= 4200);
+            }
+        }
+        let (mut enabled, mut duty) = (false, 0);
+        for op in log.borrow().iter() {
+            match *op {
+                Op::Dir(_) => assert!(!enabled, "direction changed while enabled"),
+                Op::En(true) => {
+                    assert_eq!(duty, 0, "enabled with a non-zero duty");
+                    enabled = true;
+                }
+                Op::En(false) => enabled = false,
+                Op::Duty(d) => duty = d,
+            }
+        }
+    }
+
+    #[test]
+    fn duty_codes_round_and_saturate() {
+        assert_eq!(duty_code(0.5, 1000), 500);
+        assert_eq!(duty_code(0.0004, 1000), 0);
+        assert_eq!(duty_code(0.0006, 1000), 1);
+        assert_eq!(duty_code(1.5, 1000), 1000);
+        assert_eq!(duty_code(-0.5, 1000), 0);
+        assert_eq!(duty_code(f32::NAN, 1000), 0);
+        assert_eq!(duty_code(f32::INFINITY, 1000), 1000);
+    }
+}

@@ -1,0 +1,490 @@
+//! The one tick: sense -> observer -> law -> supervisor -> bridge.
+//!
+//! [`Settings`] is the plain description (what a configuration file holds);
+//! [`Settings::build`] validates it into an immutable [`Config`], the only thing the tick
+//! reads. [`State`] is the small mutable part. The firmware interrupt, the simulator and
+//! the QEMU tests all call [`Config::tick`] (or [`Config::tick_measured`] when a simulator
+//! supplies ideal SI measurements instead of converter codes).
+//!
+//! ```
+//! use ema::control::Settings;
+//! use ema::sense::Measurement;
+//! # use embedded_hal::{digital::{ErrorType as PinError, OutputPin}, pwm::{ErrorType, SetDutyCycle}};
+//! # struct Pwm(u16);
+//! # impl ErrorType for Pwm { type Error = core::convert::Infallible; }
+//! # impl SetDutyCycle for Pwm {
+//! #     fn max_duty_cycle(&self) -> u16 { 4200 }
+//! #     fn set_duty_cycle(&mut self, d: u16) -> Result<(), Self::Error> { self.0 = d; Ok(()) }
+//! # }
+//! # struct Pin;
+//! # impl PinError for Pin { type Error = core::convert::Infallible; }
+//! # impl OutputPin for Pin {
+//! #     fn set_low(&mut self) -> Result<(), Self::Error> { Ok(()) }
+//! #     fn set_high(&mut self) -> Result<(), Self::Error> { Ok(()) }
+//! # }
+//! let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
+//! let mut state = cfg.initial_state();
+//! let mut bridge = ema::bridge::HBridge::new(Pwm(0), Pin, Pin).unwrap();
+//!
+//! // Armature at 1 mm, no current, 24 V bus, target 3 mm: the law drives current in.
+//! let frame = cfg.sense().frame(&Measurement { x_m: 1e-3, i_a: 0.0, vbus_v: 24.0 });
+//! let status = cfg.tick(&mut state, &mut bridge, &frame, 3e-3);
+//! assert_eq!(status.fault, None);
+//! assert!(status.drive.u_v > 23.9); // saturated at the bus voltage
+//!
+//! // A position sensor on the ADC rail is a fault: the bridge coasts, nothing panics.
+//! let broken = ema::sense::Frame { position: 0, ..frame };
+//! let status = cfg.tick(&mut state, &mut bridge, &broken, 3e-3);
+//! assert_eq!(status.fault, Some(ema::supervisor::Fault::PositionSensor));
+//! assert_eq!(status.drive.mode, ema::bridge::Mode::Coast);
+//! ```
+
+use embedded_hal::digital::OutputPin;
+use embedded_hal::pwm::SetDutyCycle;
+
+use crate::bridge::{Drive, HBridge};
+use crate::config::{self, Error};
+use crate::law::{self, Law, Reference};
+use crate::model::Plant;
+use crate::observer::{self, Estimate};
+use crate::sense::{Calibration, Frame, Measurement};
+use crate::supervisor::{self, Fault, Limits};
+
+/// Everything needed to build a controller, before validation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Settings {
+    /// Control (ISR) rate \[Hz\].
+    pub rate_hz: f32,
+    /// The actuator as the controller knows it (nominal values and bounds).
+    pub plant: Plant,
+    /// Converter calibration.
+    pub sense: Calibration,
+    /// Velocity observer.
+    pub observer: observer::Gains,
+    /// Control law and its gains.
+    pub law: law::Settings,
+    /// Trip limits.
+    pub limits: Limits,
+}
+
+impl Settings {
+    /// The paper's actuator and law at `rate_hz` on a `vbus_v` supply, on the reference
+    /// board; observer bandwidth 2000 rad/s; current trip 30 A (the paper's law asks for
+    /// about 21 A at start-up); bus window 0.5 to 1.25 times the supply.
+    #[must_use]
+    pub fn paper(rate_hz: f32, vbus_v: f32) -> Self {
+        let plant = Plant::paper();
+        Self {
+            rate_hz,
+            plant,
+            sense: Calibration::board(),
+            observer: observer::Gains {
+                bandwidth_rad_s: 2_000.0,
+                disturbance: false,
+            },
+            law: law::Settings::Paper(law::paper::Gains::paper()),
+            limits: Limits::for_stroke(plant.stroke_m, 30.0, 0.5 * vbus_v, 1.25 * vbus_v),
+        }
+    }
+
+    /// Validates everything and builds the immutable configuration.
+    ///
+    /// # Errors
+    /// The first invalid parameter, by name, with its value and the reason.
+    pub fn build(&self) -> Result<Config, Error> {
+        config::positive("rate_hz", self.rate_hz)?;
+        let ts_s = config::positive("ts_s", 1.0 / self.rate_hz)?;
+        self.plant.validate()?;
+        self.sense.validate()?;
+        self.limits.validate()?;
+        Ok(Config {
+            ts_s,
+            observer: self.observer.build(&self.plant, ts_s)?,
+            law: self.law.build(&self.plant, ts_s)?,
+            sense: self.sense,
+            limits: self.limits,
+            stroke_m: self.plant.stroke_m,
+        })
+    }
+}
+
+/// A validated controller configuration. Immutable; the tick only reads it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Config {
+    ts_s: f32,
+    sense: Calibration,
+    observer: observer::Config,
+    law: law::Config,
+    limits: Limits,
+    stroke_m: f32,
+}
+
+/// The controller's mutable state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct State {
+    /// Observer state.
+    pub observer: observer::State,
+    /// Law state.
+    pub law: law::State,
+    /// Latched fault and counters.
+    pub supervisor: supervisor::State,
+    /// Ticks since start (wrapping).
+    pub ticks: u32,
+}
+
+/// What one tick did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Status {
+    /// Latched fault (the bridge coasts while there is one).
+    pub fault: Option<Fault>,
+    /// Converted measurement (zero when the frame was implausible).
+    pub measurement: Measurement,
+    /// Observer estimate.
+    pub estimate: Estimate,
+    /// Reference used.
+    pub reference: Reference,
+    /// Law output (before saturation).
+    pub output: law::Output,
+    /// What the bridge was set to.
+    pub drive: Drive,
+}
+
+impl Config {
+    /// Sample period \[s\].
+    #[must_use]
+    pub const fn ts_s(&self) -> f32 {
+        self.ts_s
+    }
+
+    /// Converter calibration.
+    #[must_use]
+    pub const fn sense(&self) -> &Calibration {
+        &self.sense
+    }
+
+    /// Trip limits.
+    #[must_use]
+    pub const fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
+    /// The law.
+    #[must_use]
+    pub const fn law(&self) -> &law::Config {
+        &self.law
+    }
+
+    /// The observer.
+    #[must_use]
+    pub const fn observer(&self) -> &observer::Config {
+        &self.observer
+    }
+
+    /// A fresh state for this configuration.
+    #[must_use]
+    pub fn initial_state(&self) -> State {
+        State {
+            observer: observer::State::default(),
+            law: self.law.initial_state(),
+            supervisor: supervisor::State::default(),
+            ticks: 0,
+        }
+    }
+
+    /// One control period from converter codes. Infallible and panic-free: an implausible
+    /// frame, a limit violation, a non-finite value or a failed bridge operation latches a
+    /// fault and leaves the bridge coasting.
+    #[inline]
+    pub fn tick<P: SetDutyCycle, O: OutputPin>(
+        &self,
+        state: &mut State,
+        bridge: &mut HBridge<P, O>,
+        frame: &Frame,
+        setpoint_m: f32,
+    ) -> Status {
+        let measurement = self.sense.convert(frame);
+        self.step(state, bridge, measurement, setpoint_m)
+    }
+
+    /// One control period from SI measurements (ideal sensors in a simulator). Same path
+    /// as [`Config::tick`] after the conversion.
+    #[inline]
+    pub fn tick_measured<P: SetDutyCycle, O: OutputPin>(
+        &self,
+        state: &mut State,
+        bridge: &mut HBridge<P, O>,
+        measurement: &Measurement,
+        setpoint_m: f32,
+    ) -> Status {
+        self.step(state, bridge, Ok(*measurement), setpoint_m)
+    }
+
+    /// Latches a fault detected outside the tick (for example an interrupt overrun seen by
+    /// the firmware) and coasts the bridge.
+    pub fn trip<P: SetDutyCycle, O: OutputPin>(
+        &self,
+        state: &mut State,
+        bridge: &mut HBridge<P, O>,
+        fault: Fault,
+    ) -> Fault {
+        let latched = state.supervisor.trip(fault);
+        // Coast is already the outcome we want; a failing pin cannot make it safer.
+        let _ = bridge.coast();
+        latched
+    }
+
+    /// Clears a latched fault and restarts the observer and the law from scratch (fault
+    /// counters are kept). The next tick checks everything again before driving.
+    pub fn rearm(&self, state: &mut State) {
+        state.supervisor.clear();
+        state.observer = observer::State::default();
+        state.law = self.law.initial_state();
+    }
+
+    fn step<P: SetDutyCycle, O: OutputPin>(
+        &self,
+        state: &mut State,
+        bridge: &mut HBridge<P, O>,
+        measurement: Result<Measurement, Fault>,
+        setpoint_m: f32,
+    ) -> Status {
+        state.ticks = state.ticks.wrapping_add(1);
+        let mut status = Status {
+            fault: state.supervisor.latched(),
+            ..Status::default()
+        };
+        if status.fault.is_some() {
+            return self.safe(state, bridge, status);
+        }
+        let m = match measurement {
+            Ok(m) => m,
+            Err(fault) => {
+                status.fault = Some(state.supervisor.trip(fault));
+                return self.safe(state, bridge, status);
+            }
+        };
+        status.measurement = m;
+        if let Some(fault) = self.limits.check(&m) {
+            status.fault = Some(state.supervisor.trip(fault));
+            return self.safe(state, bridge, status);
+        }
+        if !setpoint_m.is_finite() {
+            status.fault = Some(state.supervisor.trip(Fault::Setpoint));
+            return self.safe(state, bridge, status);
+        }
+        status.reference = Reference::hold(setpoint_m.clamp(0.0, self.stroke_m));
+
+        status.estimate = self.observer.update(&mut state.observer, m.x_m, m.i_a);
+        status.output = self.law.step(
+            &mut state.law,
+            &law::Input {
+                x_m: status.estimate.x_m,
+                v_mps: status.estimate.v_mps,
+                i_a: m.i_a,
+                vbus_v: m.vbus_v,
+                disturbance_mps2: status.estimate.d_mps2,
+                reference: status.reference,
+            },
+        );
+        if !(status.output.u_v.is_finite()
+            && status.estimate.x_m.is_finite()
+            && status.estimate.v_mps.is_finite()
+            && status.estimate.d_mps2.is_finite())
+        {
+            status.fault = Some(state.supervisor.trip(Fault::NonFinite));
+            return self.safe(state, bridge, status);
+        }
+        match bridge.apply(status.output.u_v, m.vbus_v) {
+            Ok(drive) => status.drive = drive,
+            Err(_) => {
+                status.fault = Some(state.supervisor.trip(Fault::BridgeIo));
+                return self.safe(state, bridge, status);
+            }
+        }
+        status
+    }
+
+    fn safe<P: SetDutyCycle, O: OutputPin>(
+        &self,
+        state: &mut State,
+        bridge: &mut HBridge<P, O>,
+        mut status: Status,
+    ) -> Status {
+        if bridge.coast().is_err() {
+            status.fault = Some(state.supervisor.trip(Fault::BridgeIo));
+        }
+        status.drive = Drive::default();
+        status
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bridge::Mode;
+    use core::convert::Infallible;
+    use embedded_hal::digital::ErrorType as PinErrorType;
+    use embedded_hal::pwm::ErrorType as PwmErrorType;
+
+    /// A PWM that remembers its duty.
+    struct Pwm(u16);
+    impl PwmErrorType for Pwm {
+        type Error = Infallible;
+    }
+    impl SetDutyCycle for Pwm {
+        fn max_duty_cycle(&self) -> u16 {
+            4200
+        }
+        fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+            self.0 = duty;
+            Ok(())
+        }
+    }
+    struct Pin(bool);
+    impl PinErrorType for Pin {
+        type Error = Infallible;
+    }
+    impl OutputPin for Pin {
+        fn set_low(&mut self) -> Result<(), Infallible> {
+            self.0 = false;
+            Ok(())
+        }
+        fn set_high(&mut self) -> Result<(), Infallible> {
+            self.0 = true;
+            Ok(())
+        }
+    }
+
+    fn setup() -> (Config, State, HBridge<Pwm, Pin>) {
+        let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
+        let st = cfg.initial_state();
+        let b = HBridge::new(Pwm(0), Pin(false), Pin(false)).unwrap();
+        (cfg, st, b)
+    }
+
+    fn meas(x_m: f32, i_a: f32) -> Measurement {
+        Measurement {
+            x_m,
+            i_a,
+            vbus_v: 24.0,
+        }
+    }
+
+    #[test]
+    fn drives_toward_the_target_and_saturates_at_the_bus() {
+        let (cfg, mut st, mut b) = setup();
+        let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
+        assert_eq!(s.fault, None);
+        assert_eq!(s.drive.mode, Mode::Forward);
+        assert_eq!(s.drive.duty, 4200);
+        assert_eq!(s.drive.u_v, 24.0);
+        assert!(
+            s.output.u_v > 24.0,
+            "the paper law asks for more than the bus"
+        );
+        // Far above its desired current the law reverses.
+        let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 29.0), 3e-3);
+        assert_eq!(s.drive.mode, Mode::Reverse);
+    }
+
+    #[test]
+    fn invalid_inputs_latch_a_fault_and_coast() {
+        let cases = [
+            (meas(f32::NAN, 0.0), 3e-3, Fault::NonFinite),
+            (meas(1e-3, f32::INFINITY), 3e-3, Fault::NonFinite),
+            (meas(9e-3, 0.0), 3e-3, Fault::PositionRange),
+            (meas(1e-3, 31.0), 3e-3, Fault::OverCurrent),
+            (
+                Measurement {
+                    vbus_v: 5.0,
+                    ..meas(1e-3, 0.0)
+                },
+                3e-3,
+                Fault::BusUnderVoltage,
+            ),
+            (meas(1e-3, 0.0), f32::NAN, Fault::Setpoint),
+        ];
+        for (m, sp, fault) in cases {
+            let (cfg, mut st, mut b) = setup();
+            // One good tick first so the bridge is enabled.
+            cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
+            assert_eq!(b.mode(), Mode::Forward);
+            let s = cfg.tick_measured(&mut st, &mut b, &m, sp);
+            assert_eq!(s.fault, Some(fault));
+            assert_eq!(b.mode(), Mode::Coast);
+            assert_eq!(s.drive, Drive::default());
+            // Latched: good inputs do not restart the bridge.
+            let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
+            assert_eq!(s.fault, Some(fault));
+            assert_eq!(b.mode(), Mode::Coast);
+            // Re-arm: driving again.
+            cfg.rearm(&mut st);
+            let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
+            assert_eq!(s.fault, None);
+            assert_eq!(b.mode(), Mode::Forward);
+            assert_eq!(st.supervisor.count(fault), 1);
+        }
+    }
+
+    #[test]
+    fn converter_rails_are_sensor_faults() {
+        let (cfg, mut st, mut b) = setup();
+        let good = cfg.sense().frame(&meas(1e-3, 0.0));
+        let s = cfg.tick(&mut st, &mut b, &good, 3e-3);
+        assert_eq!(s.fault, None);
+        assert!((s.measurement.x_m - 1e-3).abs() < 1e-6);
+        let s = cfg.tick(
+            &mut st,
+            &mut b,
+            &Frame {
+                current: 4095,
+                ..good
+            },
+            3e-3,
+        );
+        assert_eq!(s.fault, Some(Fault::CurrentSensor));
+        assert_eq!(b.mode(), Mode::Coast);
+    }
+
+    #[test]
+    fn an_external_overrun_latches() {
+        let (cfg, mut st, mut b) = setup();
+        cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
+        assert_eq!(cfg.trip(&mut st, &mut b, Fault::Overrun), Fault::Overrun);
+        assert_eq!(b.mode(), Mode::Coast);
+        let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
+        assert_eq!(s.fault, Some(Fault::Overrun));
+    }
+
+    #[test]
+    fn set_points_are_limited_to_the_stroke() {
+        let (cfg, mut st, mut b) = setup();
+        let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 9.0);
+        assert_eq!(s.reference.x_m, 4e-3);
+        let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), -1.0);
+        assert_eq!(s.reference.x_m, 0.0);
+    }
+
+    #[test]
+    fn bad_settings_are_refused_by_name() {
+        let mut s = Settings::paper(20_000.0, 24.0);
+        s.rate_hz = 0.0;
+        assert_eq!(s.build().unwrap_err().param, "rate_hz");
+        let mut s = Settings::paper(20_000.0, 24.0);
+        s.rate_hz = -5.0;
+        assert_eq!(s.build().unwrap_err().param, "rate_hz");
+        let mut s = Settings::paper(20_000.0, 24.0);
+        s.law = law::Settings::Paper(law::paper::Gains {
+            alpha2: 10.0,
+            ..law::paper::Gains::paper()
+        });
+        assert_eq!(s.build().unwrap_err().param, "alpha2");
+        let mut s = Settings::paper(20_000.0, 24.0);
+        s.plant.bounds.s_hi_m2 = 0.5 * s.plant.bounds.s_lo_m2;
+        assert_eq!(s.build().unwrap_err().param, "bounds.s_lo_m2");
+    }
+}

@@ -1,0 +1,153 @@
+//! Control laws: one small interface ([`Law`]), several implementations selected by
+//! configuration ([`Config`]), all driven by the same tick.
+//!
+//! A law maps the estimated state and the reference to a coil voltage command. It never
+//! saturates to the supply itself (the supervisor and the bridge do), never fails and never
+//! panics; a non-finite output is caught by the supervisor and becomes a fault.
+
+pub mod paper;
+
+/// Reference trajectory at the current tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Reference {
+    /// Position `y_r` \[m\].
+    pub x_m: f32,
+    /// Velocity `y_r'` \[m/s\].
+    pub v_mps: f32,
+    /// Acceleration `y_r''` \[m/s^2\].
+    pub a_mps2: f32,
+}
+
+impl Reference {
+    /// A constant set point (zero velocity and acceleration).
+    #[must_use]
+    pub const fn hold(x_m: f32) -> Self {
+        Self {
+            x_m,
+            v_mps: 0.0,
+            a_mps2: 0.0,
+        }
+    }
+}
+
+/// What a law sees at one tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Input {
+    /// Position `x1` (estimate) \[m\].
+    pub x_m: f32,
+    /// Velocity `x2` (estimate) \[m/s\].
+    pub v_mps: f32,
+    /// Coil current `x3` (measured) \[A\].
+    pub i_a: f32,
+    /// Bus voltage (measured) \[V\].
+    pub vbus_v: f32,
+    /// Estimated acceleration disturbance (what the nominal model does not explain)
+    /// \[m/s^2\]; 0 when the observer does not estimate one.
+    pub disturbance_mps2: f32,
+    /// Reference.
+    pub reference: Reference,
+}
+
+/// What a law asks for at one tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Output {
+    /// Coil voltage command `u` \[V\] (before saturation to the supply).
+    pub u_v: f32,
+    /// Desired current `x3d` \[A\].
+    pub i_d_a: f32,
+    /// Sliding variable `S = x3 - x3d` \[A\].
+    pub s_a: f32,
+}
+
+/// A control law: an immutable, validated configuration that steps its own small state.
+pub trait Law {
+    /// The law's mutable state.
+    type State: Copy + Default;
+
+    /// One control step. Infallible and panic-free.
+    fn step(&self, state: &mut Self::State, input: &Input) -> Output;
+}
+
+/// The law and its gains, before validation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Settings {
+    /// The paper's law.
+    Paper(paper::Gains),
+}
+
+impl Settings {
+    /// Validates the gains against `plant` and builds the law for the sample period `ts_s`.
+    ///
+    /// # Errors
+    /// The first invalid parameter, by name.
+    pub fn build(
+        &self,
+        plant: &crate::model::Plant,
+        ts_s: f32,
+    ) -> Result<Config, crate::config::Error> {
+        match self {
+            Settings::Paper(gains) => Ok(Config::Paper(gains.build(plant, ts_s)?)),
+        }
+    }
+}
+
+/// The law selected by configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Config {
+    /// The paper's law exactly as published ([`paper`]).
+    Paper(paper::Config),
+}
+
+/// State of the selected law.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum State {
+    /// State of [`Config::Paper`].
+    Paper(paper::State),
+}
+
+impl Config {
+    /// The initial state that goes with this law.
+    #[must_use]
+    pub fn initial_state(&self) -> State {
+        match self {
+            Config::Paper(_) => State::Paper(paper::State::default()),
+        }
+    }
+
+    /// Short name of the law, as in configuration files.
+    #[must_use]
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Config::Paper(_) => "paper",
+        }
+    }
+}
+
+impl Default for State {
+    fn default() -> Self {
+        State::Paper(paper::State::default())
+    }
+}
+
+impl Law for Config {
+    type State = State;
+
+    #[inline]
+    fn step(&self, state: &mut State, input: &Input) -> Output {
+        match (self, state) {
+            (Config::Paper(law), State::Paper(s)) => law.step(s, input),
+            #[allow(unreachable_patterns)]
+            (law, state) => {
+                // A state of another law: start this law from its initial state.
+                *state = law.initial_state();
+                law.step(state, input)
+            }
+        }
+    }
+}

@@ -1,0 +1,92 @@
+//! # ema: robust position control of an electromagnetic actuator
+//!
+//! The `no_std`, `f32`-only control core of the EMA controller. One coil on a magnetic
+//! circuit with an airgap, a moving armature held by a spring, a position sensor and a
+//! coil-current sensor; the coil is driven by a PWM H-bridge. The method is the one of
+//! Deschaux, Gouaisbaut and Ariba, "Nonlinear control for an uncertain electromagnetic
+//! actuator" (CDC 2018): flux fringing is modelled as a bounded uncertainty on the airgap
+//! surfaces, the mechanical part is controlled by backstepping and the coil current by a
+//! sliding-mode law built on the uncertainty bounds.
+//!
+//! The same [`control::Config::tick`] runs in the firmware interrupt, in the host simulator
+//! (`hil-sim`, through mock HAL pins) and on an emulated Cortex-M4F under QEMU.
+//!
+//! ## Modules, in the order the tick runs them
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`model`] | reluctance network with flux fringing, `rho`, `L`, `mu` and their bounds |
+//! | [`sense`] | raw ADC codes to SI measurements, plausibility |
+//! | [`observer`] | velocity (and a force disturbance) from the sampled position |
+//! | [`law`] | the control laws: the paper's law and the practical variants |
+//! | [`supervisor`] | limits, latched faults, safe state |
+//! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
+//! | [`control`] | the configuration, the state and the one `tick` |
+//!
+//! ## Guarantees
+//!
+//! * `#![no_std]` always (also in test builds of the library itself), no heap.
+//! * `f32` only. Every operation the tick uses is IEEE-exact (`+ - * /` and a correctly
+//!   rounded square root, [`math::sqrt`]), so the host and the Cortex-M4F compute the same
+//!   bits for the same inputs.
+//! * The tick cannot fail and cannot panic: `unwrap`, `expect`, `panic!`, indexing that can
+//!   panic, unchecked casts and integer overflow are denied by lints below. Any non-finite or
+//!   implausible value becomes a latched fault and the bridge coasts.
+//!
+//! ## Example: the paper's actuator under the paper's law
+//!
+//! ```
+//! use ema::{law, model};
+//!
+//! let plant = model::Plant::paper();
+//! let paper = law::paper::Gains::paper().build(&plant, 1.0 / 20_000.0).unwrap();
+//!
+//! // Theorem 1 for the paper's gains: a = -799, b = -40, Q negative definite.
+//! let th = paper.theorem1();
+//! assert_eq!(th.a, -799.0);
+//! assert_eq!(th.b, -40.0);
+//! assert!(th.eig_max < 0.0 && (th.eig_max + 2.035).abs() < 1e-3);
+//!
+//! // alpha2 = 10 fails Theorem 1 and the error says which parameter and why.
+//! let bad = law::paper::Gains { alpha2: 10.0, ..law::paper::Gains::paper() };
+//! let err = bad.build(&plant, 1.0 / 20_000.0).unwrap_err();
+//! assert_eq!(err.param, "alpha2");
+//! ```
+#![no_std]
+#![deny(unsafe_code)]
+#![deny(missing_docs)]
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::todo,
+    clippy::unimplemented,
+    clippy::unreachable,
+    clippy::indexing_slicing,
+    clippy::arithmetic_side_effects,
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap,
+    clippy::float_cmp_const
+)]
+// Tests may unwrap: a failed unwrap is a failed test.
+#![cfg_attr(
+    test,
+    allow(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing,
+        clippy::arithmetic_side_effects
+    )
+)]
+
+pub mod bridge;
+pub mod config;
+pub mod control;
+pub mod law;
+pub mod math;
+pub mod model;
+pub mod observer;
+pub mod sense;
+pub mod supervisor;

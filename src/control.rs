@@ -53,6 +53,8 @@ use crate::supervisor::{self, Fault, Limits};
 /// Everything needed to build a controller, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Settings {
     /// Control (ISR) rate \[Hz\].
     pub rate_hz: f32,

@@ -35,6 +35,11 @@ pub const MU0_H_PER_M: f32 = 1.256_637_1e-6;
 /// What the position coordinate `x1` means.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum Convention {
     /// As printed in the paper: `x1` is the airgap, the magnetic force acts along `+x1`
     /// (opening the gap) and the back-EMF term is `+x2 x3 mu`. For reproducing the paper.
@@ -82,6 +87,11 @@ impl Convention {
 /// How the airgap surface `S(g)` seen by the flux depends on the gap (paper, section II-B).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum Fringing {
     /// Weighting coefficient: `S = alpha * S_cm`, constant over the stroke.
     Coefficient {
@@ -127,6 +137,8 @@ impl Fringing {
 /// The magnetic circuit: coil, iron path and airgaps.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Magnetics {
     /// Coil turns `N` \[-\].
     pub turns: f32,
@@ -249,6 +261,8 @@ fn force_coefficient(n2: f32, rho_x: f32, rho0: f32, g_m: f32) -> f32 {
 /// Bounds on the airgap surface, `S_lo <= S(g) <= S_hi` for every gap of the stroke \[m^2\].
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Bounds {
     /// Lower bound `S_lo` \[m^2\].
     pub s_lo_m2: f32,
@@ -448,6 +462,8 @@ impl Nominal {
 /// uncertainty bounds, position convention and stroke.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Plant {
     /// Moving mass `m` \[kg\].
     pub mass_kg: f32,

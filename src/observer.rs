@@ -27,6 +27,8 @@ use crate::model::{Convention, Nominal, Plant};
 /// Observer design parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Gains {
     /// Bandwidth `w`: all error poles at `exp(-w Ts)` \[rad/s\].
     pub bandwidth_rad_s: f32,

@@ -56,6 +56,8 @@ pub struct Measurement {
 /// Linear calibration and plausible window of one converter channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Channel {
     /// Code that reads as zero \[code\].
     pub offset_code: f32,
@@ -126,6 +128,8 @@ impl Channel {
 /// Calibration of the three channels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Calibration {
     /// Position channel, metres.
     pub position: Channel,

@@ -123,6 +123,8 @@ impl fmt::Display for Fault {
 /// Trip limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Limits {
     /// Instantaneous over-current trip level \[A\].
     pub current_trip_a: f32,

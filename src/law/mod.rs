@@ -74,6 +74,11 @@ pub trait Law {
 /// The law and its gains, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(tag = "law", rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum Settings {
     /// The paper's law.
     Paper(paper::Gains),

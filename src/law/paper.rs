@@ -49,6 +49,8 @@ use crate::model::{Convention, Envelope, Plant};
 /// The paper's gains.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Gains {
     /// Backstepping gain on the position error `alpha1` \[1/s\].
     pub alpha1: f32,

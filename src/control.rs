@@ -49,6 +49,7 @@ use crate::model::Plant;
 use crate::observer::{self, Estimate};
 use crate::sense::{Calibration, Frame, Measurement};
 use crate::supervisor::{self, Fault, Limits};
+use crate::trajectory;
 
 /// Everything needed to build a controller, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -68,6 +69,13 @@ pub struct Settings {
     pub law: law::Settings,
     /// Trip limits.
     pub limits: Limits,
+    /// Age of the measurements when the tick runs, in samples (0 or 1). With 1, the
+    /// observer and the current loop predict across the delay.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub delay_ticks: u8,
+    /// Reference shaping; `None` passes the set point through as a step.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub shaping: Option<trajectory::Settings>,
 }
 
 impl Settings {
@@ -84,9 +92,46 @@ impl Settings {
             observer: observer::Gains {
                 bandwidth_rad_s: 2_000.0,
                 disturbance: false,
+                model: observer::Model::Nominal,
             },
             law: law::Settings::Paper(law::paper::Gains::paper()),
             limits: Limits::for_stroke(plant.stroke_m, 30.0, 0.5 * vbus_v, 1.25 * vbus_v),
+            delay_ticks: 0,
+            shaping: None,
+        }
+    }
+
+    /// The product's default: the practical law ([`law::discrete`]) on the paper's
+    /// actuator at `rate_hz` on a `vbus_v` supply, on the reference board, with one sample
+    /// of measurement delay, an extended-state observer and reference shaping; current
+    /// limited to 12 A by the law and tripped at 13.2 A (limit + 10 %).
+    #[must_use]
+    pub fn practical(rate_hz: f32, vbus_v: f32) -> Self {
+        let plant = Plant::paper();
+        let gains = law::discrete::Gains::default_gains();
+        Self {
+            rate_hz,
+            plant,
+            sense: Calibration::board(),
+            observer: observer::Gains {
+                bandwidth_rad_s: 300.0,
+                disturbance: true,
+                model: observer::Model::Robust,
+            },
+            law: law::Settings::Discrete(gains),
+            limits: Limits::for_stroke(
+                plant.stroke_m,
+                1.1 * gains.current_max_a,
+                0.5 * vbus_v,
+                1.25 * vbus_v,
+            ),
+            delay_ticks: 1,
+            shaping: Some(trajectory::Settings {
+                accel_max_mps2: 20.0,
+                current_max_a: gains.current_max_a,
+                margin: 0.6,
+                duration_min_s: 0.02,
+            }),
         }
     }
 
@@ -102,8 +147,12 @@ impl Settings {
         self.limits.validate()?;
         Ok(Config {
             ts_s,
-            observer: self.observer.build(&self.plant, ts_s)?,
-            law: self.law.build(&self.plant, ts_s)?,
+            observer: self.observer.build(&self.plant, ts_s, self.delay_ticks)?,
+            law: self.law.build(&self.plant, ts_s, self.delay_ticks)?,
+            shaping: match &self.shaping {
+                Some(s) => Some(s.build(&self.plant, ts_s)?),
+                None => None,
+            },
             sense: self.sense,
             limits: self.limits,
             stroke_m: self.plant.stroke_m,
@@ -119,6 +168,7 @@ pub struct Config {
     sense: Calibration,
     observer: observer::Config,
     law: law::Config,
+    shaping: Option<trajectory::Config>,
     limits: Limits,
     stroke_m: f32,
 }
@@ -133,6 +183,10 @@ pub struct State {
     pub law: law::State,
     /// Latched fault and counters.
     pub supervisor: supervisor::State,
+    /// Reference-shaping state.
+    pub trajectory: trajectory::State,
+    /// Average voltage the bridge applied over the last period \[V\].
+    pub u_prev_v: f32,
     /// Ticks since start (wrapping).
     pub ticks: u32,
 }
@@ -193,6 +247,8 @@ impl Config {
             observer: observer::State::default(),
             law: self.law.initial_state(),
             supervisor: supervisor::State::default(),
+            trajectory: trajectory::State::default(),
+            u_prev_v: 0.0,
             ticks: 0,
         }
     }
@@ -245,6 +301,8 @@ impl Config {
         state.supervisor.clear();
         state.observer = observer::State::default();
         state.law = self.law.initial_state();
+        state.trajectory = trajectory::State::default();
+        state.u_prev_v = 0.0;
     }
 
     fn step<P: SetDutyCycle, O: OutputPin>(
@@ -278,7 +336,16 @@ impl Config {
             status.fault = Some(state.supervisor.trip(Fault::Setpoint));
             return self.safe(state, bridge, status);
         }
-        status.reference = Reference::hold(setpoint_m.clamp(0.0, self.stroke_m));
+        let setpoint_m = setpoint_m.clamp(0.0, self.stroke_m);
+        status.reference = match &self.shaping {
+            Some(shaping) => {
+                if !state.trajectory.is_primed() {
+                    shaping.start(&mut state.trajectory, m.x_m.clamp(0.0, self.stroke_m));
+                }
+                shaping.step(&mut state.trajectory, setpoint_m)
+            }
+            None => Reference::hold(setpoint_m),
+        };
 
         status.estimate = self.observer.update(&mut state.observer, m.x_m, m.i_a);
         status.output = self.law.step(
@@ -290,6 +357,7 @@ impl Config {
                 vbus_v: m.vbus_v,
                 disturbance_mps2: status.estimate.d_mps2,
                 reference: status.reference,
+                u_prev_v: state.u_prev_v,
             },
         );
         if !(status.output.u_v.is_finite()
@@ -301,7 +369,10 @@ impl Config {
             return self.safe(state, bridge, status);
         }
         match bridge.apply(status.output.u_v, m.vbus_v) {
-            Ok(drive) => status.drive = drive,
+            Ok(drive) => {
+                status.drive = drive;
+                state.u_prev_v = drive.u_v;
+            }
             Err(_) => {
                 status.fault = Some(state.supervisor.trip(Fault::BridgeIo));
                 return self.safe(state, bridge, status);
@@ -320,6 +391,7 @@ impl Config {
             status.fault = Some(state.supervisor.trip(Fault::BridgeIo));
         }
         status.drive = Drive::default();
+        state.u_prev_v = 0.0;
         status
     }
 }

@@ -5,7 +5,7 @@
 //! ADC codes from a converter model, [`hal`]), the core's own `Config::tick` runs exactly
 //! as in the firmware, and drives the core's `HBridge` over mock `embedded-hal` PWM and pins
 //! whose state sets the coil voltage, period-averaged or pulse by pulse. A [`Scenario`]
-//! says what to simulate; [`run`] returns the trace and the [`Metrics`]; [`montecarlo`]
+//! says what to simulate; [`run`] returns the trace and the [`Metrics`]; [`montecarlo()`]
 //! repeats a scenario over plants drawn from the uncertainty set.
 //!
 //! The controller is only ever reached through `ema::control::Settings` ->
@@ -41,7 +41,7 @@
 //! | [`scenario`] | scenario, reference, sensors, bridge, integration, uncertainty set |
 //! | [`sim`] | the closed loop and its trace |
 //! | [`metrics`] | metrics definitions and the bounds check |
-//! | [`montecarlo`] | parallel, seeded runs over drawn plants |
+//! | [`mod@montecarlo`] | parallel, seeded runs over drawn plants |
 #![deny(missing_docs)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]

@@ -316,14 +316,26 @@ impl Uncertainty {
     /// controller's surface bounds `[S_lo, S_hi]` over the whole stroke (constant, or a
     /// square pole `(a + k g)^2` whose surface at the two ends of the gap range is drawn
     /// inside the bounds), and the force model.
+    ///
+    /// Never panics: spreads and probabilities outside their ranges (see
+    /// [`Uncertainty::validate`]) are clamped into them, and degenerate bounds give the
+    /// middle surface.
     pub fn draw<R: Rng + ?Sized>(&self, nominal: &ema::model::Plant, rng: &mut R) -> Params {
         let mut p = Params::from_core(nominal, ForceModel::Frozen);
         let s_lo = f64::from(nominal.bounds.s_lo_m2) * (1.0 + DRAW_MARGIN);
         let s_hi = f64::from(nominal.bounds.s_hi_m2) * (1.0 - DRAW_MARGIN);
+        let (s_lo, s_hi) = if s_lo < s_hi {
+            (s_lo, s_hi)
+        } else {
+            let mid = 0.5 * (s_lo + s_hi);
+            (mid, mid)
+        };
+        let probability = |v: f64| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+        let rel = |v: f64| if v.is_nan() { 0.0 } else { v.clamp(0.0, 0.99) };
         let (g_lo, g_hi) = p.gap_range_m();
         for gap in &mut p.gaps {
             let s1 = rng.random_range(s_lo..=s_hi);
-            *gap = if rng.random_bool(self.rectangular_probability) && g_hi > g_lo {
+            *gap = if rng.random_bool(probability(self.rectangular_probability)) && g_hi > g_lo {
                 let s2 = rng.random_range(s1..=s_hi);
                 let (r1, r2) = (s1.sqrt(), s2.sqrt());
                 let k = (r2 - r1) / (g_hi - g_lo);
@@ -341,12 +353,12 @@ impl Uncertainty {
                 Surface::Constant { s_m2: s1 }
             };
         }
-        let mut spread = |v: f64, rel: f64| v * (1.0 + rng.random_range(-rel..=rel));
+        let mut spread = |v: f64, r: f64| v * (1.0 + rng.random_range(-rel(r)..=rel(r)));
         p.resistance_ohm = spread(p.resistance_ohm, self.resistance_rel);
         p.spring_n_per_m = spread(p.spring_n_per_m, self.spring_rel);
         p.mass_kg = spread(p.mass_kg, self.mass_rel);
         p.friction_n_s_per_m = spread(p.friction_n_s_per_m, self.friction_rel);
-        p.force = if rng.random_bool(self.energy_consistent_probability) {
+        p.force = if rng.random_bool(probability(self.energy_consistent_probability)) {
             ForceModel::EnergyConsistent
         } else {
             ForceModel::Frozen
@@ -824,6 +836,27 @@ mod tests {
         }
         assert!(rect > 100 && rect < 300, "{rect}");
         assert!(ec > 60 && ec < 140, "{ec}");
+    }
+
+    #[test]
+    fn draws_never_panic_on_bad_settings() {
+        use rand::SeedableRng;
+        let bad = Uncertainty {
+            resistance_rel: f64::NAN,
+            spring_rel: 3.0,
+            mass_rel: -1.0,
+            friction_rel: 0.5,
+            energy_consistent_probability: 1.5,
+            rectangular_probability: f64::NAN,
+        };
+        assert!(bad.validate().is_err());
+        let mut nominal = ema::model::Plant::paper();
+        nominal.bounds.s_hi_m2 = nominal.bounds.s_lo_m2;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(0);
+        let p = bad.draw(&nominal, &mut rng);
+        assert_eq!(p.force, ForceModel::EnergyConsistent);
+        assert_eq!(p.resistance_ohm, f64::from(nominal.resistance_ohm));
+        assert!(p.spring_n_per_m >= 0.0);
     }
 
     #[test]

@@ -103,6 +103,7 @@ pub fn run(scenario: &Scenario) -> Result<Run, Error> {
     scenario.validate()?;
     let config = scenario.controller.build()?;
     let plant = scenario.plant.resolve(&scenario.controller.plant);
+    plant.validate()?;
     let bounds = metrics::bounds_check(&scenario.controller.plant, &plant)?;
     let mut stepper = Stepper::new(
         plant,
@@ -576,6 +577,43 @@ mod tests {
             let p = st.advance(Drive::Coast, BridgeMode::Switching);
             assert_eq!(p.u_abs_max_v, 0.0);
         }
+    }
+
+    /// The trace and the metrics are what CSV and report writers will serialise: a flat
+    /// sample with the mode and the fault by name, and metrics that read back unchanged.
+    #[test]
+    fn samples_and_metrics_round_trip_through_serde() {
+        let sample = Sample {
+            t_s: 1e-3,
+            mode: Mode::Reverse,
+            fault: Some(Fault::OverCurrent),
+            ..Sample::default()
+        };
+        let text = toml::to_string(&sample).unwrap();
+        assert!(text.contains("mode = \"reverse\""), "{text}");
+        assert!(text.contains("fault = \"over_current\""), "{text}");
+        assert_eq!(toml::from_str::<Sample>(&text).unwrap(), sample);
+        let clean = Sample::default();
+        assert_eq!(
+            toml::from_str::<Sample>(&toml::to_string(&clean).unwrap()).unwrap(),
+            clean
+        );
+
+        let mut sc = crate::Scenario::paper(20_000.0).with_duration_s(0.01);
+        sc.controller.limits.vbus_min_v = 200.0;
+        sc.controller.limits.vbus_max_v = 300.0;
+        let m = run(&sc).unwrap().metrics;
+        assert!(m.first_fault.is_some());
+        let back: Metrics = toml::from_str(&toml::to_string(&m).unwrap()).unwrap();
+        assert_eq!(back, m);
+    }
+
+    #[test]
+    fn an_invalid_true_plant_is_refused_by_name() {
+        let mut p = Params::paper();
+        p.gaps.clear();
+        let sc = crate::Scenario::paper(20_000.0).with_plant(crate::scenario::TruePlant::Given(p));
+        assert_eq!(run(&sc).unwrap_err().name(), "plant.gaps");
     }
 
     #[test]

@@ -48,6 +48,7 @@
 
 pub mod compare;
 mod error;
+pub mod faults;
 pub mod hal;
 pub mod lyapunov;
 pub mod metrics;

@@ -367,6 +367,89 @@ impl Uncertainty {
     }
 }
 
+/// A fault injected into a run.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Injection {
+    /// When it starts \[s\] (it lasts to the end of the run).
+    pub at_s: f64,
+    /// What goes wrong.
+    pub fault: Injected,
+}
+
+/// What an [`Injection`] does.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Injected {
+    /// The position sensor's output falls to 0 V (open wire): the converter reads its low
+    /// rail.
+    PositionOpen,
+    /// The position sensor's output is shorted to its supply: the converter reads its high
+    /// rail.
+    PositionShorted,
+    /// The position sensor's output freezes at its value at the injection.
+    PositionStuck,
+    /// The current sensor's output freezes at its value at the injection.
+    CurrentStuck,
+    /// The current sensor's zero steps by `offset_a`.
+    CurrentOffset {
+        /// Offset \[A\].
+        offset_a: f64,
+    },
+    /// The coil circuit opens: no current can flow.
+    CoilOpen,
+    /// Shorted turns: the coil resistance drops to `resistance_ohm`.
+    CoilShort {
+        /// New resistance \[ohm\].
+        resistance_ohm: f64,
+    },
+    /// The supply's source voltage changes to `voltage_v` (sag or over-voltage).
+    Supply {
+        /// New source voltage \[V\].
+        voltage_v: f64,
+    },
+    /// The control interrupt misses `ticks` deadlines in a row: no tick runs and the
+    /// bridge keeps its last state; when the interrupt runs again the firmware sees the
+    /// overrun and reports it (`Config::trip(Overrun)`), as the STM32 firmware does.
+    MissedDeadlines {
+        /// Missed periods.
+        ticks: u32,
+    },
+}
+
+impl Injection {
+    /// Checks the parameters.
+    ///
+    /// # Errors
+    /// A time that is negative or not finite, a resistance or voltage that is not
+    /// positive, zero missed ticks.
+    pub fn validate(&self) -> Result<(), Error> {
+        non_negative("faults.at_s", self.at_s)?;
+        match self.fault {
+            Injected::CurrentOffset { offset_a } if !offset_a.is_finite() => {
+                return Err(Error::param(
+                    "faults.fault.offset_a",
+                    offset_a,
+                    "must be finite",
+                ));
+            }
+            Injected::CoilShort { resistance_ohm } => {
+                positive("faults.fault.resistance_ohm", resistance_ohm)?;
+            }
+            Injected::Supply { voltage_v } => positive("faults.fault.voltage_v", voltage_v)?,
+            Injected::MissedDeadlines { ticks: 0 } => {
+                return Err(Error::param(
+                    "faults.fault.ticks",
+                    0.0,
+                    "must be at least 1",
+                ));
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
 /// The true plant of a scenario.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -517,6 +600,9 @@ pub struct Scenario {
     /// Length of the steady-state window at the end of each segment \[s\].
     #[serde(default = "default_window")]
     pub steady_window_s: f64,
+    /// Faults injected during the run (none by default).
+    #[serde(default)]
+    pub faults: Vec<Injection>,
 }
 
 fn default_window() -> f64 {
@@ -560,6 +646,7 @@ impl Scenario {
             integration: Integration::for_rate(rate_hz),
             probes_s: vec![0.5],
             steady_window_s: default_window(),
+            faults: Vec::new(),
         }
     }
 
@@ -569,13 +656,13 @@ impl Scenario {
     /// the nominal actuator (frozen fringing), a supply with 50 mOhm of internal
     /// resistance, the averaged bridge, a 12-bit converter on every channel with 1.5 codes
     /// RMS of noise and one sample of delay ([`Adc::typical`]), the board's current channel
-    /// (+-16.5 A) and a bus channel covering 1.5 times the supply; the paper's step from
-    /// 1 mm to 3 mm, 0.4 s.
+    /// (+-16.5 A) and its 72.6 V bus channel (or twice the supply, if more: the channel
+    /// must read an over-voltage, not clip it); the paper's step from 1 mm to 3 mm, 0.4 s.
     #[must_use]
     #[allow(clippy::cast_possible_truncation)]
     pub fn product(rate_hz: f64, supply_v: f64) -> Self {
         let mut controller = Settings::practical(rate_hz as f32, supply_v as f32);
-        controller.sense = hal::calibration(1.5 * supply_v, 16.5);
+        controller.sense = hal::calibration((2.0 * supply_v).max(72.6), 16.5);
         Self {
             name: format!("product-{rate_hz}hz-{supply_v}v"),
             duration_s: 0.4,
@@ -602,6 +689,7 @@ impl Scenario {
             integration: Integration::for_rate(rate_hz),
             probes_s: Vec::new(),
             steady_window_s: default_window(),
+            faults: Vec::new(),
         }
     }
 
@@ -779,6 +867,19 @@ impl Scenario {
         }
         if let Sensors::Adc(adc) = &self.sensors {
             adc.validate()?;
+            if adc.delay_samples != u32::from(self.controller.delay_ticks) {
+                return Err(Error::param(
+                    "controller.delay_ticks",
+                    f64::from(self.controller.delay_ticks),
+                    format!(
+                        "the converter delivers its frames {} period(s) late \
+                         (sensors.delay_samples): the controller must be told the same, or \
+                         its observer, current predictor and fault detectors pair samples \
+                         with the wrong voltages",
+                        adc.delay_samples
+                    ),
+                ));
+            }
             let cal = &self.controller.sense;
             let (_, vbus_max) = hal::channel_span(&cal.vbus);
             if vbus_max <= self.supply.voltage_v {
@@ -825,13 +926,32 @@ impl Scenario {
                 ));
             }
         }
+        for f in &self.faults {
+            f.validate()?;
+        }
         positive("steady_window_s", self.steady_window_s)
+    }
+
+    /// Adds a fault injected at `at_s`.
+    #[must_use]
+    pub fn with_fault(mut self, at_s: f64, fault: Injected) -> Self {
+        self.faults.push(Injection { at_s, fault });
+        self
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_converter_delay_the_controller_does_not_know_is_refused() {
+        let mut sc = Scenario::product(20e3, 24.0);
+        sc.controller.delay_ticks = 0;
+        let e = sc.validate().unwrap_err();
+        assert!(e.to_string().contains("controller.delay_ticks"), "{e}");
+        assert!(Scenario::product(20e3, 24.0).validate().is_ok());
+    }
 
     #[test]
     fn references_and_segments() {

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 use crate::hal::{self, Drive, Supply};
 use crate::metrics::{self, Metrics};
 use crate::plant::{Impact, Input, Params, State};
-use crate::scenario::{BridgeMode, Scenario, Sensors};
+use crate::scenario::{BridgeMode, Injected, Scenario, Sensors};
 use crate::Error;
 
 /// One ISR period: the state at the sample instant `t_s`, what the tick did, and what the
@@ -126,27 +126,60 @@ pub fn run(scenario: &Scenario) -> Result<Run, Error> {
         Sensors::Adc(adc) => Some(adc.start(config.sense())),
     };
     let mut trace = Vec::with_capacity(n);
+    let mut faults = scenario.faults.clone();
+    faults.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+    let mut faults = faults.into_iter().peekable();
+    let mut sensing = SensorFaults::default();
+    let (mut missed, mut overrun) = (0_u32, false);
+    let mut last = ema::control::Status::default();
 
     for _ in 0..n {
         let now = stepper.sample();
         let r = scenario.reference.position_m(now.t_s);
-        #[allow(clippy::cast_possible_truncation)]
-        let status = match converter.as_mut() {
-            None => config.tick_measured(
-                &mut ctl,
-                &mut bridge,
-                &Measurement {
-                    x_m: now.x_m as f32,
-                    i_a: now.i_a as f32,
-                    vbus_v: now.vbus_v as f32,
-                },
-                r as f32,
-            ),
-            Some(c) => {
-                let frame = c.sample(now.x_m, now.i_a, now.vbus_v);
-                config.tick(&mut ctl, &mut bridge, &frame, r as f32)
+        // Faults whose time has come (a period's worth of slack for the f64 clock).
+        while let Some(f) = faults.next_if(|f| f.at_s <= now.t_s + 1e-9) {
+            match f.fault {
+                Injected::CoilOpen => stepper.open_coil(),
+                Injected::CoilShort { resistance_ohm } => {
+                    stepper.set_resistance_ohm(resistance_ohm)
+                }
+                Injected::Supply { voltage_v } => stepper.set_supply_v(voltage_v),
+                Injected::MissedDeadlines { ticks } => {
+                    missed = missed.saturating_add(ticks);
+                    overrun = true;
+                }
+                other => sensing.inject(other, &now),
+            }
+        }
+        let status = if missed > 0 {
+            // The interrupt does not run: the bridge keeps whatever it was set to.
+            missed -= 1;
+            last
+        } else {
+            if overrun {
+                overrun = false;
+                config.trip(&mut ctl, &mut bridge, Fault::Overrun);
+            }
+            let (x_m, i_a) = sensing.read(&now);
+            #[allow(clippy::cast_possible_truncation)]
+            match converter.as_mut() {
+                None => config.tick_measured(
+                    &mut ctl,
+                    &mut bridge,
+                    &Measurement {
+                        x_m: x_m as f32,
+                        i_a: i_a as f32,
+                        vbus_v: now.vbus_v as f32,
+                    },
+                    r as f32,
+                ),
+                Some(c) => {
+                    let frame = c.sample(x_m, i_a, now.vbus_v);
+                    config.tick(&mut ctl, &mut bridge, &frame, r as f32)
+                }
             }
         };
+        last = status;
         let period = stepper.advance(lines.drive(), scenario.bridge.mode);
         trace.push(Sample {
             t_s: now.t_s,
@@ -178,6 +211,54 @@ pub fn run(scenario: &Scenario) -> Result<Run, Error> {
         plant,
         metrics,
     })
+}
+
+/// What the injected sensor faults do to the analog values the converter sees.
+#[derive(Clone, Copy, Debug, Default)]
+struct SensorFaults {
+    position: Option<PositionFault>,
+    current_stuck: Option<f64>,
+    current_offset_a: f64,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum PositionFault {
+    /// Output at 0 V: a value far below the range, which the converter reads as its low
+    /// rail.
+    Open,
+    /// Output at the sensor's supply: far above the range, the high rail.
+    Shorted,
+    /// Frozen at this value \[m\].
+    Stuck(f64),
+}
+
+impl SensorFaults {
+    fn inject(&mut self, fault: Injected, now: &Truth) {
+        match fault {
+            Injected::PositionOpen => self.position = Some(PositionFault::Open),
+            Injected::PositionShorted => self.position = Some(PositionFault::Shorted),
+            Injected::PositionStuck => self.position = Some(PositionFault::Stuck(now.x_m)),
+            Injected::CurrentStuck => {
+                self.current_stuck = Some(now.i_a + self.current_offset_a);
+            }
+            Injected::CurrentOffset { offset_a } => self.current_offset_a += offset_a,
+            _ => {}
+        }
+    }
+
+    /// Position and current as the sensors report them.
+    fn read(&self, now: &Truth) -> (f64, f64) {
+        let x = match self.position {
+            None => now.x_m,
+            Some(PositionFault::Open) => -1.0,
+            Some(PositionFault::Shorted) => 1.0,
+            Some(PositionFault::Stuck(x)) => x,
+        };
+        let i = self
+            .current_stuck
+            .unwrap_or(now.i_a + self.current_offset_a);
+        (x, i)
+    }
 }
 
 /// The true state at a sample instant.
@@ -229,6 +310,8 @@ pub struct Stepper {
     /// The input in force at the end of the last period (for the bus voltage at the next
     /// sample instant).
     last: Input,
+    /// The coil circuit is open (an injected fault): no current flows.
+    coil_open: bool,
 }
 
 impl Stepper {
@@ -267,7 +350,25 @@ impl Stepper {
             state,
             impacts: Vec::new(),
             last,
+            coil_open: false,
         })
+    }
+
+    /// Opens the coil circuit (an injected fault): from now on no current flows, whatever
+    /// the bridge applies.
+    pub fn open_coil(&mut self) {
+        self.coil_open = true;
+        self.state.y[2] = 0.0;
+    }
+
+    /// Changes the coil resistance (an injected short of turns) \[ohm\].
+    pub fn set_resistance_ohm(&mut self, resistance_ohm: f64) {
+        self.plant.resistance_ohm = resistance_ohm;
+    }
+
+    /// Changes the supply's source voltage (an injected sag or over-voltage) \[V\].
+    pub fn set_supply_v(&mut self, voltage_v: f64) {
+        self.supply.voltage_v = voltage_v;
     }
 
     /// The true state now.
@@ -375,6 +476,10 @@ impl Stepper {
             };
             let u0 = input.coil_voltage_v(i).abs();
             let hit = self.plant.step(&mut self.state, &input, h);
+            if self.coil_open {
+                // i = 0 exactly in both electrical states (current, or flux linkage).
+                self.state.y[2] = 0.0;
+            }
             *t += h;
             i = self.plant.current_a(&self.state);
             p.u_abs_max_v = p.u_abs_max_v.max(u0).max(input.coil_voltage_v(i).abs());

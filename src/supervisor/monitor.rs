@@ -21,10 +21,10 @@
 //! | evidence | fault |
 //! |---|---|
 //! | one isolated step beyond the interval by more than `jump_a`, the next step admissible again | [`Fault::CurrentOffset`] (a step in the reading no coil can make; found one tick later) |
-//! | `ticks` in a row below, current near 0 | [`Fault::CoilOpen`] |
-//! | `ticks` in a row below, summed change under `1/gross` of the least admissible | [`Fault::CurrentStuck`] |
-//! | `ticks` in a row above, resistance fitted below `R_lo / gross` | [`Fault::CoilShort`] |
-//! | `ticks` in a row outside otherwise | [`Fault::ModelBounds`] |
+//! | `confirm_s` of steps below, current near 0 | [`Fault::CoilOpen`] |
+//! | `confirm_s` of steps below, summed change under `1/gross` of the least admissible | [`Fault::CurrentStuck`] |
+//! | `confirm_s` of steps above, resistance fitted below `R_lo / gross` | [`Fault::CoilShort`] |
+//! | `confirm_s` of steps outside otherwise, or alternating above and below | [`Fault::ModelBounds`] |
 //!
 //! Sums over the run of outside steps, not single steps, decide between "broken" and
 //! "outside the bounds": a single step's admissible change can be close to zero (holding,
@@ -33,7 +33,9 @@
 //! squares over the run as `e = a p + b k i`: `a` is an inductance error, `b` a resistance
 //! deficit. A short is a resistance far below its bound (`R - b < R_lo / gross`); when the
 //! run carries almost no current (`k i` tiny) `b` is not identifiable and the verdict is
-//! `ModelBounds`.
+//! `ModelBounds`. Steps outside the interval that alternate in sign are the signature of
+//! an inductance below its bound: the current loop, tuned for the bounds, overshoots on
+//! such a coil.
 //!
 //! The motional back-EMF is left out of the prediction: at the speeds of this actuator it
 //! moves the current by less than the noise allowance (about 10 mA per period at 1 mm and
@@ -42,6 +44,7 @@
 use super::Fault;
 use crate::config::{self, Error};
 use crate::model::{Envelope, Plant};
+use crate::sense::Calibration;
 
 /// I^2 t protection of the coil.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,21 +58,37 @@ pub struct Thermal {
     pub allowance_a2s: f32,
 }
 
-/// Stuck position sensor: the reading does not change while the reference moves.
+/// Stuck position sensor: the reading stays within its noise band while the reference
+/// moves.
+///
+/// A frozen sensor output still reaches the tick through the converter, with the
+/// converter's noise: the evidence is a reading that stays within `band_codes` of where
+/// it was (an anchor, renewed whenever the reading leaves the band) for `window_s` while
+/// the reference has travelled `reference_m`. A healthy loop follows the reference within
+/// micrometres, so its reading leaves the band long before (set `reference_m` well above
+/// the band). A
+/// reading that waits while the reference comes *toward* it is healthy too: a plant that
+/// led the reference near the end of a move does exactly that. So the reference must be
+/// moving fast, at least `reference_m / window_s` (30 mm/s by default) at the tick that
+/// decides: near the end of a move a healthy armature that stopped ahead of a slow
+/// reference is static on this time scale (a 20 um error moves a 0.1 kg armature by
+/// nanometres in 0.7 ms). A sensor frozen during a slow move is left to the tracking
+/// detector.
 ///
 /// "No change while the current changes" is not usable as evidence: in closed loop the
 /// controller changes the current precisely to hold the position against a changing
 /// disturbance, and over a millisecond the armature's mass turns even an ampere of change
-/// into much less than one converter step of motion. A moving reference, which the loop
-/// follows within micrometres, is what must move the reading.
+/// into much less than one converter step of motion.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Stuck {
-    /// Ticks with a bit-identical reading before it counts as stuck.
-    pub ticks: u16,
-    /// Reference motion over those ticks that must move the reading \[m\].
+    /// Time within the band before it counts as stuck \[s\].
+    pub window_s: f32,
+    /// Half-width of the band, in steps of the position converter \[code\].
+    pub band_codes: f32,
+    /// Reference travel since the anchor that must have moved the reading \[m\].
     pub reference_m: f32,
 }
 
@@ -84,14 +103,23 @@ pub struct Residual {
     pub noise_codes: f32,
     /// Relative widening of the admissible change \[-\].
     pub margin: f32,
-    /// Consecutive ticks outside the interval before a fault.
-    pub ticks: u16,
+    /// How long the evidence must last before a fault \[s\] (rounded to whole ticks,
+    /// at least 2).
+    pub confirm_s: f32,
     /// One-step excess that no coil can produce \[A\].
     pub jump_a: f32,
     /// Current below which the coil counts as open \[A\].
     pub open_a: f32,
     /// Factor between "outside the bounds" and "broken" \[-\].
     pub gross: f32,
+    /// Length of the corner-bank window \[ticks\].
+    #[cfg_attr(feature = "serde", serde(default = "default_window"))]
+    pub window: u16,
+}
+
+#[cfg(feature = "serde")]
+const fn default_window() -> u16 {
+    16
 }
 
 /// Tracking error too large for too long.
@@ -126,10 +154,16 @@ impl Monitors {
     /// Every detector on, with the product's defaults for a current limit `current_max_a`:
     /// continuous rating 80 % of the limit with 2 A^2 s above it (0.25 s at the limit
     /// from a cold coil would need 2.6 A^2 s: a limit-long move is fine, a stall is not);
-    /// stuck after 16 identical readings while the reference moved 20 um (25 mm/s);
+    /// stuck after 0.7 ms of readings within +-8 codes (about 4 sigma of 1.5 codes of
+    /// noise, 8.7 um on the board) while the reference moved 21 um at 30 mm/s or more (a
+    /// healthy reading leaves the band after at most the band plus two noise excursions,
+    /// 15 um, of motion; 0.6 ms and 18 um tripped on 3 of 300 healthy drawn plants at
+    /// 10 kHz, 0.7 ms and 21 um on none of 600);
     /// residual noise allowance 8 codes (5.6 sigma of a one-step difference at 1 code of
     /// noise, 3.8 sigma at 1.5 codes; four in a row in the same direction are needed),
-    /// margin 10 %, 4 ticks, jump 1.5 A, open below 0.2 A, gross factor 2;
+    /// margin 10 %, evidence for 0.2 ms (4 ticks at 20 kHz, at least 2), jump 0.5 A
+    /// (60 codes on the board), open below 0.2 A,
+    /// gross factor 2, a 16-tick corner bank;
     /// tracking error 0.5 mm for 50 ms.
     #[must_use]
     pub fn product(current_max_a: f32) -> Self {
@@ -139,16 +173,18 @@ impl Monitors {
                 allowance_a2s: 2.0,
             }),
             stuck: Some(Stuck {
-                ticks: 16,
-                reference_m: 20e-6,
+                window_s: 0.7e-3,
+                band_codes: 8.0,
+                reference_m: 21e-6,
             }),
             residual: Some(Residual {
                 noise_codes: 8.0,
                 margin: 0.1,
-                ticks: 4,
-                jump_a: 1.5,
+                confirm_s: 0.2e-3,
+                jump_a: 0.5,
                 open_a: 0.2,
                 gross: 2.0,
+                window: 16,
             }),
             tracking: Some(Tracking {
                 error_m: 0.5e-3,
@@ -157,16 +193,15 @@ impl Monitors {
         }
     }
 
-    /// Validates and builds the detectors for `plant`, the current converter step
-    /// `current_a_per_code`, the sample period `ts_s` and `delay_ticks` of measurement
-    /// delay.
+    /// Validates and builds the detectors for `plant`, the converters' calibration
+    /// `sense`, the sample period `ts_s` and `delay_ticks` of measurement delay.
     ///
     /// # Errors
     /// The first bad parameter, by name.
     pub fn build(
         &self,
         plant: &Plant,
-        current_a_per_code: f32,
+        sense: &Calibration,
         ts_s: f32,
         delay_ticks: u8,
     ) -> Result<Config, Error> {
@@ -177,16 +212,23 @@ impl Monitors {
             config::positive("monitors.thermal.allowance_a2s", t.allowance_a2s)?;
         }
         if let Some(s) = &self.stuck {
-            config::at_least("monitors.stuck.ticks", f32::from(s.ticks), 2.0)?;
+            config::within("monitors.stuck.window_s", s.window_s / ts_s, 2.0, 60_000.0)?;
+            config::positive("monitors.stuck.band_codes", s.band_codes)?;
             config::positive("monitors.stuck.reference_m", s.reference_m)?;
         }
         if let Some(r) = &self.residual {
             config::positive("monitors.residual.noise_codes", r.noise_codes)?;
             config::at_least("monitors.residual.margin", r.margin, 0.0)?;
-            config::at_least("monitors.residual.ticks", f32::from(r.ticks), 1.0)?;
+            config::within(
+                "monitors.residual.confirm_s",
+                r.confirm_s / ts_s,
+                0.0,
+                60_000.0,
+            )?;
             config::positive("monitors.residual.jump_a", r.jump_a)?;
             config::at_least("monitors.residual.open_a", r.open_a, 0.0)?;
             config::at_least("monitors.residual.gross", r.gross, 1.0)?;
+            config::at_least("monitors.residual.window", f32::from(r.window), 2.0)?;
         }
         let tracking_ticks = match &self.tracking {
             Some(t) => {
@@ -201,13 +243,30 @@ impl Monitors {
         };
         let r = plant.resistance_ohm;
         let tol = plant.tolerance.resistance;
-        let noise_a = match &self.residual {
-            Some(r) => r.noise_codes * current_a_per_code.abs(),
-            None => 0.0,
+        let (noise_a, confirm_ticks) = match &self.residual {
+            Some(r) => {
+                // In [0, 60000] (checked above): nearest tick, cannot overflow.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let n = libm::roundf(r.confirm_s / ts_s) as u16;
+                (r.noise_codes * sense.current.scale.abs(), n.max(2))
+            }
+            None => (0.0, 0),
+        };
+        let (band_m, stuck_ticks) = match &self.stuck {
+            Some(s) => {
+                // In [2, 60000] (checked above): nearest tick, cannot overflow.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let n = libm::roundf(s.window_s / ts_s) as u16;
+                (s.band_codes * sense.position.scale.abs(), n)
+            }
+            None => (0.0, 0),
         };
         Ok(Config {
             monitors: *self,
             noise_a,
+            confirm_ticks,
+            band_m,
+            stuck_ticks,
             nominal: envelope.nominal(),
             envelope,
             convention: plant.convention,
@@ -227,6 +286,9 @@ impl Monitors {
 pub struct Config {
     monitors: Monitors,
     noise_a: f32,
+    confirm_ticks: u16,
+    band_m: f32,
+    stuck_ticks: u16,
     envelope: Envelope,
     nominal: crate::model::Nominal,
     convention: crate::model::Convention,
@@ -244,6 +306,7 @@ pub struct Config {
 pub struct MonitorState {
     /// `integral of (i^2 - I_c^2) dt`, floored at 0 \[A^2 s\].
     pub i2t_a2s: f32,
+    /// Anchor of the band the reading must leave \[m\].
     x_last: f32,
     x_same_ticks: u16,
     r_at_change: f32,
@@ -253,6 +316,8 @@ pub struct MonitorState {
     u_hist: [(f32, bool); 2],
     below: u16,
     above: u16,
+    /// Consecutive steps outside the interval, in either direction.
+    outside: u16,
     /// The previous step was the first one outside the interval, by more than `jump_a`.
     jumped: bool,
     /// Over the current run of outside steps: sum of `|measured change|`.
@@ -261,6 +326,14 @@ pub struct MonitorState {
     run_adm: f32,
     /// Least-squares sums over the run: `p p`, `p q`, `q q`, `p e`, `q e`.
     fit: [f32; 5],
+    /// Corner bank: the four corner coils' currents since the anchor \[A\].
+    bank: [f32; 4],
+    /// Measured current at the bank's anchor \[A\].
+    bank_anchor: f32,
+    /// Ticks since the anchor (0: anchor at the next step).
+    bank_ticks: u16,
+    /// Consecutive steps with the reading below the bank.
+    bank_below: u16,
     off_track: u32,
     primed: bool,
 }
@@ -284,6 +357,8 @@ pub struct Inputs {
     pub i_a: f32,
     /// Reference position \[m\].
     pub r_m: f32,
+    /// Reference velocity \[m/s\].
+    pub r_v_mps: f32,
 }
 
 impl Config {
@@ -325,15 +400,16 @@ impl Config {
 
     fn stuck(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
         let s = self.monitors.stuck.as_ref()?;
-        if inp.x_m.to_bits() != st.x_last.to_bits() {
+        if (inp.x_m - st.x_last).abs() > self.band_m {
             st.x_last = inp.x_m;
             st.x_same_ticks = 0;
             st.r_at_change = inp.r_m;
             return None;
         }
         st.x_same_ticks = st.x_same_ticks.saturating_add(1);
-        let moved = (inp.r_m - st.r_at_change).abs() >= s.reference_m;
-        (st.x_same_ticks >= s.ticks && moved).then_some(Fault::PositionStuck)
+        let fast = inp.r_v_mps.abs() * s.window_s >= s.reference_m;
+        let moved = (inp.r_m - st.r_at_change).abs() >= s.reference_m && fast;
+        (st.x_same_ticks >= self.stuck_ticks && moved).then_some(Fault::PositionStuck)
     }
 
     fn residual(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
@@ -347,7 +423,10 @@ impl Config {
         if !driving {
             st.below = 0;
             st.above = 0;
+            st.outside = 0;
             st.jumped = false;
+            st.bank_ticks = 0;
+            st.bank_below = 0;
             return None;
         }
         let g = self.convention.gap_m(inp.x_m);
@@ -368,6 +447,9 @@ impl Config {
             d_min = d_min.min(d);
             d_max = d_max.max(d);
         }
+        if let Some(f) = self.bank(r, st, inp.i_a, i0, u, l_lo, l_hi) {
+            return Some(f);
+        }
         let widen = r.margin * d_min.abs().max(d_max.abs()) + self.noise_a;
         let d_meas = inp.i_a - i0;
         let (lo, hi) = (d_min - widen, d_max + widen);
@@ -378,9 +460,11 @@ impl Config {
             let offset = st.jumped && (st.below == 1 || st.above == 1);
             st.below = 0;
             st.above = 0;
+            st.outside = 0;
             st.jumped = false;
             return offset.then_some(Fault::CurrentOffset);
         }
+        st.outside = st.outside.saturating_add(1);
         let below = d_meas < lo;
         let first = if below { st.below == 0 } else { st.above == 0 };
         if first {
@@ -400,8 +484,8 @@ impl Config {
             };
             st.run_meas += d_meas.abs();
             st.run_adm += least;
-            if st.below < r.ticks {
-                return None;
+            if st.below < self.confirm_ticks {
+                return (st.outside >= self.confirm_ticks).then_some(Fault::ModelBounds);
             }
             if inp.i_a.abs() < r.open_a && i0.abs() < r.open_a {
                 return Some(Fault::CoilOpen);
@@ -420,11 +504,72 @@ impl Config {
         let e = d_meas - p;
         let [pp, pq, qq, pe, qe] = st.fit;
         st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
-        if st.above < r.ticks {
-            return None;
+        if st.above < self.confirm_ticks {
+            return (st.outside >= self.confirm_ticks).then_some(Fault::ModelBounds);
         }
         Some(if self.resistance_fit(&st.fit) < self.r_lo / r.gross {
             Fault::CoilShort
+        } else {
+            Fault::ModelBounds
+        })
+    }
+
+    /// The corner bank (see the module documentation): advances the four corner coils by
+    /// one period under `u` and compares the reading with their envelope.
+    #[allow(clippy::too_many_arguments)]
+    fn bank(
+        &self,
+        r: &Residual,
+        st: &mut MonitorState,
+        i_a: f32,
+        i0: f32,
+        u: f32,
+        l_lo: f32,
+        l_hi: f32,
+    ) -> Option<Fault> {
+        if st.bank_ticks == 0 || st.bank_ticks >= r.window {
+            st.bank = [i0; 4];
+            st.bank_anchor = i0;
+            st.bank_ticks = 0;
+            st.bank_below = 0;
+        }
+        st.bank_ticks = st.bank_ticks.saturating_add(1);
+        let corners = [
+            (l_lo, self.r_lo),
+            (l_lo, self.r_hi),
+            (l_hi, self.r_lo),
+            (l_hi, self.r_hi),
+        ];
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut least = f32::INFINITY;
+        for (c, (l, res)) in st.bank.iter_mut().zip(corners) {
+            let k = self.ts_s / l;
+            *c += k * (u - res * *c) / (1.0 + 0.5 * res * k);
+            lo = lo.min(*c);
+            hi = hi.max(*c);
+            least = least.min((*c - st.bank_anchor).abs());
+        }
+        let spread = (hi - st.bank_anchor).abs().max((lo - st.bank_anchor).abs());
+        let widen = r.margin * spread + self.noise_a;
+        // Below the bank in the direction the coil is driven: the whole bank moved away
+        // from the anchor (all corners on one side) and the reading lags all of them.
+        let rising = lo > st.bank_anchor;
+        let falling = hi < st.bank_anchor;
+        let behind = (rising && i_a < lo - widen) || (falling && i_a > hi + widen);
+        st.bank_below = if behind {
+            st.bank_below.saturating_add(1)
+        } else {
+            0
+        };
+        if st.bank_below < self.confirm_ticks {
+            return None;
+        }
+        if i_a.abs() < r.open_a && i0.abs() < r.open_a {
+            return Some(Fault::CoilOpen);
+        }
+        let moved = (i_a - st.bank_anchor).abs();
+        Some(if moved * r.gross < least {
+            Fault::CurrentStuck
         } else {
             Fault::ModelBounds
         })
@@ -465,7 +610,7 @@ mod tests {
 
     fn cfg(delay: u8) -> Config {
         Monitors::product(12.0)
-            .build(&Plant::paper(), crate::sense::CURRENT_A_PER_CODE, TS, delay)
+            .build(&Plant::paper(), &Calibration::board(), TS, delay)
             .unwrap()
     }
 
@@ -487,6 +632,7 @@ mod tests {
                 x_m: g + if k % 2 == 0 { 1e-6 } else { 0.0 },
                 i_a: sensor(i),
                 r_m: g,
+                r_v_mps: 0.0,
             };
             if let Some(f) = c.check(&mut st, &inp) {
                 return Some(f);
@@ -533,6 +679,7 @@ mod tests {
                 x_m: 3e-3 + (k % 2) as f32 * 1e-6,
                 i_a: i,
                 r_m: 3e-3,
+                r_v_mps: 0.0,
             };
             if let Some(f) = c.check(&mut st, &inp) {
                 found = Some((f, k));
@@ -554,6 +701,7 @@ mod tests {
             x_m: 3e-3,
             i_a,
             r_m: 3e-3,
+            r_v_mps: 0.0,
         };
         // Holding 6 A at 2.4 V; the reading steps by +2.5 A and stays offset.
         assert_eq!(c.check(&mut st, &inp(6.0)), None);
@@ -572,9 +720,11 @@ mod tests {
         let mut found = None;
         for k in 0..40 {
             let inp = Inputs {
-                x_m: 2e-3,
+                // Frozen output plus +-2 codes of converter noise.
+                x_m: 2e-3 + ((k * 7) % 5) as f32 * 1.085e-6 - 2.17e-6,
                 i_a: 5.0,
                 r_m: 2e-3 + k as f32 * 2e-6, // reference moving at 4 cm/s
+                r_v_mps: 0.04,
             };
             if let Some(f) = c.check(&mut st, &inp) {
                 found = Some((f, k));
@@ -582,8 +732,9 @@ mod tests {
             }
             c.record_drive(&mut st, 2.0, false);
         }
-        // The 16th repeat of the first reading, when the reference has moved 32 um > 20 um.
-        assert_eq!(found, Some((Fault::PositionStuck, 16)));
+        // The 14th reading within the band (0.7 ms), when the reference has moved
+        // 28 um > 21 um.
+        assert_eq!(found, Some((Fault::PositionStuck, 14)));
         // At rest nothing is expected to move: no fault.
         let mut st = MonitorState::default();
         for _ in 0..1000 {
@@ -591,6 +742,7 @@ mod tests {
                 x_m: 2e-3,
                 i_a: 5.0,
                 r_m: 2e-3,
+                r_v_mps: 0.0,
             };
             assert_eq!(c.check(&mut st, &inp), None);
             c.record_drive(&mut st, 2.0, false);
@@ -605,6 +757,7 @@ mod tests {
             x_m: 2e-3,
             i_a,
             r_m: 2e-3,
+            r_v_mps: 0.0,
         };
         c.check(&mut st, &at(12.0));
         // 0.1 s at 12 A: (144 - 92.16) * 0.1 = 5.2 A^2 s > 2: trips after 2/51.84 = 38.6 ms.
@@ -635,6 +788,7 @@ mod tests {
             x_m: 1e-3,
             i_a: 1.0,
             r_m: 3e-3,
+            r_v_mps: 0.0,
         };
         c.check(&mut st, &off);
         let mut n = 0;
@@ -660,13 +814,13 @@ mod tests {
         let mut m = Monitors::product(12.0);
         m.residual.as_mut().unwrap().gross = 0.5;
         let e = m
-            .build(&Plant::paper(), crate::sense::CURRENT_A_PER_CODE, TS, 0)
+            .build(&Plant::paper(), &Calibration::board(), TS, 0)
             .unwrap_err();
         assert_eq!(e.param, "monitors.residual.gross");
         let mut m = Monitors::product(12.0);
         m.tracking.as_mut().unwrap().time_s = 0.0;
         let e = m
-            .build(&Plant::paper(), crate::sense::CURRENT_A_PER_CODE, TS, 0)
+            .build(&Plant::paper(), &Calibration::board(), TS, 0)
             .unwrap_err();
         assert_eq!(e.param, "monitors.tracking.time_s");
     }

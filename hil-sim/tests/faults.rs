@@ -1,0 +1,97 @@
+//! Fault injection (issue 6): each fault is found within 1 ms (20 ticks at 20 kHz) with
+//! its own code, the coil current never exceeds the trip level (limit + 10 %, 13.2 A),
+//! the bridge coasts from then on, and nothing panics.
+
+use ema::supervisor::Fault;
+use hil_sim::faults::{cases, evaluate, table, DEADLINE_S};
+use hil_sim::scenario::Injected;
+use hil_sim::{run, Scenario};
+
+#[test]
+fn every_injected_fault_is_named_within_a_millisecond() {
+    let outcomes = table(20e3, 24.0).unwrap();
+    assert_eq!(outcomes.len(), 11);
+    for o in &outcomes {
+        assert!(
+            o.pass(),
+            "{}: expected {} within {} s, got {:?} after {:?} s, peak {} A, coasting {}",
+            o.name,
+            o.expected,
+            DEADLINE_S,
+            o.fault,
+            o.detected_after_s,
+            o.peak_current_a,
+            o.coasting
+        );
+        assert!(
+            o.peak_current_a <= 13.2,
+            "{}: {} A",
+            o.name,
+            o.peak_current_a
+        );
+    }
+    // Measured: the rails in one tick (50 us), the bus checks in two, the coil checks in
+    // five, the stuck position at the fastest point of the move in 14 (0.7 ms).
+    let slowest = outcomes
+        .iter()
+        .filter_map(|o| o.detected_after_s)
+        .fold(0.0_f64, f64::max);
+    assert!(slowest <= 0.7e-3 + 1e-9, "{slowest}");
+}
+
+/// The same cases at 10 kHz (a tick is 100 us, the deadline is still 1 ms). Two limits of
+/// software protection at that rate are pinned here and reported in the README: a coil
+/// short is named in 0.3 ms but, reacting one delayed period late while the short adds
+/// about 3.6 A per period, the current overshoots the 13.2 A trip (measured 15.5 A; the
+/// STM32's comparator on the TIM1 break input is what bounds it in hardware); and the
+/// plant outside the bounds, which the law controls, leaves no electrical evidence.
+#[test]
+fn faults_are_named_at_10_khz_too() {
+    for o in table(10e3, 24.0).unwrap() {
+        match o.name.as_str() {
+            "coil short" => {
+                assert_eq!(o.fault.as_deref(), Some("coil_short"));
+                assert!(o.detected_after_s.unwrap() <= DEADLINE_S);
+                let peak = o.peak_current_a;
+                assert!(peak > 13.2 && peak < 16.0, "{peak}");
+            }
+            "plant outside the bounds" => assert_eq!(o.fault, None),
+            _ => assert!(
+                o.pass(),
+                "{}: {:?} after {:?}",
+                o.name,
+                o.fault,
+                o.detected_after_s
+            ),
+        }
+    }
+}
+
+/// A current reading frozen while the current barely changes (in the middle of the move,
+/// milliamperes per tick) carries no information until the loop has wound up against it:
+/// it is still named, later. Measured: 11.3 ms.
+#[test]
+fn a_current_reading_frozen_in_a_steady_phase_is_found_later() {
+    let sc = Scenario::product(20e3, 24.0)
+        .with_duration_s(0.3)
+        .with_fault(0.07, Injected::CurrentStuck);
+    let r = run(&sc).unwrap();
+    let first = r.trace.iter().find(|s| s.fault.is_some()).unwrap();
+    assert_eq!(first.fault, Some(Fault::CurrentStuck));
+    let after = first.t_s - 0.07;
+    assert!(after > 1e-3 && after < 20e-3, "{after}");
+    assert!(r.metrics.i_peak_a <= 13.2);
+}
+
+/// Healthy runs of every case's scenario without the injection raise nothing.
+#[test]
+fn without_the_injection_nothing_is_raised() {
+    for mut c in cases(20e3, 24.0) {
+        if c.name == "plant outside the bounds" {
+            continue;
+        }
+        c.scenario.faults.clear();
+        let o = evaluate(&c).unwrap();
+        assert_eq!(o.fault, None, "{}", c.name);
+    }
+}

@@ -45,6 +45,7 @@ use embedded_hal::pwm::SetDutyCycle;
 use crate::bridge::{Drive, HBridge};
 use crate::config::{self, Error};
 use crate::law::{self, Law, Reference};
+use crate::math;
 use crate::model::Plant;
 use crate::observer::{self, Estimate};
 use crate::sense::{Calibration, Frame, Measurement};
@@ -278,7 +279,7 @@ impl Config {
             status.fault = Some(state.supervisor.trip(Fault::Setpoint));
             return self.safe(state, bridge, status);
         }
-        status.reference = Reference::hold(setpoint_m.clamp(0.0, self.stroke_m));
+        status.reference = Reference::hold(math::clamp(setpoint_m, 0.0, self.stroke_m));
 
         status.estimate = self.observer.update(&mut state.observer, m.x_m, m.i_a);
         status.output = self.law.step(

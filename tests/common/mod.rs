@@ -5,7 +5,7 @@
 //! These binaries run on QEMU `-machine netduinoplus2 -cpu cortex-m4` (an STM32F405), see
 //! the `qemu` alias in `.cargo/config.toml`. QEMU's GPIO, ADC and RCC are not usable, so
 //! the bridge writes RAM "registers" with volatile stores instead of the STM32 HAL.
-#![allow(dead_code)]
+#![allow(dead_code, unused_macros)]
 
 use core::convert::Infallible;
 use core::fmt;

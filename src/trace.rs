@@ -625,7 +625,11 @@ mod tests {
         let mut b = HBridge::new(Pwm(4201), Pin, Pin).unwrap();
         let mut out = Vec::from(Header::new(case, &cfg, 4201, ticks).encode());
         for k in 0..u16::try_from(ticks).unwrap() {
-            let position = if u32::from(k) + 3 == ticks { 0 } else { 1000 + k };
+            let position = if u32::from(k) + 3 == ticks {
+                0
+            } else {
+                1000 + k
+            };
             let frame = Frame {
                 position,
                 current: 2048 + k % 50,

@@ -85,10 +85,18 @@ pub const INJECTED_SEQUENCE: [u8; 3] = [CURRENT_CHANNEL, POSITION_CHANNEL, VBUS_
 pub const ADC_SEQUENCE_NS: u32 =
     3 * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * 1_000 / (ADC_CLK_HZ / 1_000_000);
 
-/// Pin number of the bridge enable on GPIOC (for the register-level coast on panic).
-pub const EN_PIN: u8 = 9;
-/// Pin number of the bridge PWM on GPIOA (for the register-level coast on panic).
+/// Port of the bridge PWM pin (TIM1_CH1 in alternate function 1).
+pub const PWM_PORT: char = 'A';
+/// Pin number of the bridge PWM.
 pub const PWM_PIN: u8 = 8;
+/// Port of the bridge direction pin.
+pub const DIR_PORT: char = 'C';
+/// Pin number of the bridge direction.
+pub const DIR_PIN: u8 = 8;
+/// Port of the bridge enable pin.
+pub const EN_PORT: char = 'C';
+/// Pin number of the bridge enable.
+pub const EN_PIN: u8 = 9;
 
 /// Independent-watchdog timeout \[ms\] (LSI 32 kHz nominal, 17-47 kHz over the chip's
 /// range: 1.4 to 3.8 ms). 40 control periods; the coil's L/R is 0.15-0.44 ms, so a hung

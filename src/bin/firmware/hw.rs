@@ -18,15 +18,27 @@ use stm32f4xx_hal::timer::{PwmChannel, PwmExt};
 
 use crate::board;
 
+/// The bridge enable pin (board::EN_PORT, board::EN_PIN): start-up must hand over exactly
+/// this pin, so the constants and the code cannot disagree.
+pub type EnablePin = gpio::Pin<{ board::EN_PORT }, { board::EN_PIN }, Output<PushPull>>;
+/// The bridge direction pin (board::DIR_PORT, board::DIR_PIN).
+pub type DirectionPin = gpio::Pin<{ board::DIR_PORT }, { board::DIR_PIN }, Output<PushPull>>;
+/// The bridge PWM pin before it is given to TIM1 (board::PWM_PORT, board::PWM_PIN).
+pub type PwmPin = gpio::Pin<{ board::PWM_PORT }, { board::PWM_PIN }>;
+
+// force_coast writes these pins through the GPIOC and GPIOA register blocks.
+const _: () = assert!(board::EN_PORT == 'C' && board::PWM_PORT == 'A' && board::EN_PIN < 16);
+const _: () = assert!(board::PWM_PIN < 16);
+
 /// The bridge's direction or enable pin. The core's bridge takes both pins as one type;
 /// the HAL's erased pin types would do, but they index the pin number at run time, which
 /// links a bounds-check panic into the interrupt. With the pins kept typed, every pin
 /// write is one store to BSRR with a constant.
 pub enum Pin {
-    /// PC8, bridge direction.
-    Direction(gpio::PC8<Output<PushPull>>),
-    /// PC9, bridge enable.
-    Enable(gpio::PC9<Output<PushPull>>),
+    /// Bridge direction.
+    Direction(DirectionPin),
+    /// Bridge enable.
+    Enable(EnablePin),
 }
 
 impl embedded_hal::digital::ErrorType for Pin {
@@ -137,16 +149,16 @@ impl embedded_hal::pwm::SetDutyCycle for Pwm {
     }
 }
 
-/// TIM1 at 20 kHz center-aligned on PA8, its update event once per period on TRGO (the
-/// ADC trigger), main output enabled, channel enabled at duty 0.
-pub fn pwm(tim1: pac::TIM1, pa8: gpio::PA8, rcc: &mut Rcc) -> Pwm {
+/// TIM1 at 20 kHz center-aligned on the PWM pin, its update event once per period on TRGO
+/// (the ADC trigger), main output enabled, channel enabled at duty 0.
+pub fn pwm(tim1: pac::TIM1, pin: PwmPin, rcc: &mut Rcc) -> Pwm {
     // Prescaler 0 (the timer counts at TIM1_CLK_HZ), ARR = PWM_ARR, compare preload on,
     // PWM mode 1, counter running edge-aligned for now.
     let (_manager, (ch1, ..)) = tim1.pwm::<{ board::TIM1_CLK_HZ }>(
         fugit::TimerDurationU32::from_ticks(board::PWM_ARR + 1),
         rcc,
     );
-    let mut ch1 = ch1.with(pa8);
+    let mut ch1 = ch1.with(pin);
     ch1.set_duty(0);
     // SAFETY: TIM1 belongs to this function (the HAL objects above own it and only write
     // CCR1 and CCER from now on); nothing else runs yet.
@@ -222,21 +234,29 @@ pub fn conversion_pending() -> bool {
 /// (a write to a peripheral whose clock is still off is ignored, and then the pins are
 /// still in their reset state: inputs, EN pulled down by the board).
 pub fn force_coast() {
-    // SAFETY: single 32-bit writes to BSRR are atomic with respect to every other pin
-    // operation; the read-modify-writes of TIM1 and GPIOA registers below can only race
-    // with code that this handler has stopped (it runs with interrupts masked, and only
-    // ever moves the outputs towards the safe state).
+    // Raw bit values, not the PAC's indexed field writers: those check the index at run
+    // time, and a panic handler must not be able to panic.
+    let en_reset = 1u32 << (16 + board::EN_PIN);
+    let pwm_reset = 1u32 << (16 + board::PWM_PIN);
+    let pwm_mode_mask = 0b11u32 << (2 * board::PWM_PIN);
+    let pwm_mode_output = 0b01u32 << (2 * board::PWM_PIN);
+    // SAFETY: fixed register blocks of this chip. A single 32-bit write to BSRR is atomic
+    // with respect to every other pin operation; the read-modify-writes of TIM1 and GPIOA
+    // can only race with code that the caller has stopped (it runs with interrupts masked
+    // or as the hard-fault handler), and they only move the outputs towards the safe state.
+    // Every value written is valid for its register (BSRR: the reset bit of one pin;
+    // MODER: general-purpose output for one pin; CCR1: 0).
     unsafe {
         let gpioc = &*pac::GPIOC::ptr();
-        gpioc.bsrr().write(|w| w.br(board::EN_PIN).set_bit());
+        gpioc.bsrr().write(|w| w.bits(en_reset));
         let tim = &*pac::TIM1::ptr();
         tim.bdtr()
             .modify(|_, w| w.moe().clear_bit().aoe().clear_bit());
         tim.ccr1().write(|w| w.ccr().set(0));
         let gpioa = &*pac::GPIOA::ptr();
-        gpioa.bsrr().write(|w| w.br(board::PWM_PIN).set_bit());
+        gpioa.bsrr().write(|w| w.bits(pwm_reset));
         gpioa
             .moder()
-            .modify(|_, w| w.moder(board::PWM_PIN).output());
+            .modify(|r, w| w.bits((r.bits() & !pwm_mode_mask) | pwm_mode_output));
     }
 }

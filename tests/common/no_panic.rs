@@ -1,6 +1,9 @@
 //! The link-time proof that the tick cannot panic, shared by `tests/qemu_no_panic.rs` (must
 //! link) and `tests/panic_canary.rs` (must not).
 //!
+//! It also covers the golden-trace reader and replay (`ema::trace::Trace::parse`,
+//! `ema::trace::replay`), which the on-target checker runs on bytes from flash.
+//!
 //! The program's panic handler calls a function that exists nowhere. The release profile
 //! links with fat LTO, so every function that no reachable code calls is gone before the
 //! linker resolves symbols: the undefined symbol is only an error when some panic is
@@ -18,7 +21,7 @@ use ema::trace::CASES;
 fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
     extern "Rust" {
         // The symbol's name is the error message the linker prints.
-        #[link_name = "\n\nERROR: a panic is reachable from Config::tick or Config::trip (see tests/common/no_panic.rs)\n\n"]
+        #[link_name = "\n\nERROR: a panic is reachable from Config::tick, Config::trip or the trace replay (see tests/common/no_panic.rs)\n\n"]
         fn a_panic_is_reachable_from_the_tick() -> !;
     }
     // SAFETY: never runs: the program only links when nothing calls the panic handler.
@@ -49,6 +52,16 @@ pub fn exercise() -> u32 {
             let _ = cfg.trip(&mut state, &mut bridge, black_box(Fault::Overrun));
         }
         acc = acc.wrapping_add(black_box(state).ticks);
+        // The trace reader and replay, on bytes the optimiser cannot see.
+        if let Ok(trace) = ema::trace::Trace::parse(black_box(&TRACE[..])) {
+            if let Err(m) = ema::trace::replay(&trace, &cfg, &mut bridge) {
+                acc = acc.wrapping_add(m.tick);
+            }
+        }
     }
     acc
 }
+
+/// Bytes for the trace reader: a header and two records' worth.
+static TRACE: [u8; ema::trace::HEADER_LEN + 2 * ema::trace::RECORD_LEN] =
+    [0; ema::trace::HEADER_LEN + 2 * ema::trace::RECORD_LEN];

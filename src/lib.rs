@@ -18,6 +18,7 @@
 //! | [`model`] | reluctance network with flux fringing, `rho`, `L`, `mu` and their bounds |
 //! | [`sense`] | raw ADC codes to SI measurements, plausibility |
 //! | [`observer`] | velocity (and a force disturbance) from the sampled position |
+//! | [`trajectory`] | reference shaping within the actuator's force limits |
 //! | [`law`] | the control laws: the paper's law and the practical variants |
 //! | [`supervisor`] | limits, latched faults, safe state |
 //! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
@@ -92,3 +93,4 @@ pub mod observer;
 pub mod sense;
 pub mod supervisor;
 pub mod trace;
+pub mod trajectory;

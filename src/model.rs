@@ -371,6 +371,17 @@ impl Envelope {
         }
     }
 
+    /// The weakest magnet of the bounds: `rho_x = rho_x_hi` (smallest surface). Its force
+    /// coefficient equals `mu_lo(g)` wherever `g > rho_0 / rho_x_lo`.
+    #[must_use]
+    pub fn weakest(&self) -> Nominal {
+        Nominal {
+            n2: self.n2,
+            rho0: self.rho0,
+            rho_x: self.rho_x_hi,
+        }
+    }
+
     /// Lower reluctance bound `rho_lo(g)` \[1/H\].
     #[inline]
     #[must_use]
@@ -458,6 +469,90 @@ impl Nominal {
     }
 }
 
+/// Relative uncertainty of the mechanical and electrical parameters (the airgap surfaces
+/// have their own [`Bounds`]): the true value lies within `nominal * (1 +- tolerance)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct Tolerance {
+    /// Moving mass \[-\].
+    pub mass: f32,
+    /// Spring constant \[-\].
+    pub spring: f32,
+    /// Viscous friction \[-\].
+    pub friction: f32,
+    /// Coil resistance (temperature) \[-\].
+    pub resistance: f32,
+}
+
+impl Tolerance {
+    /// The product's design case: mass +-10 %, spring +-10 %, friction +-50 %,
+    /// resistance +-20 %.
+    #[must_use]
+    pub const fn paper() -> Self {
+        Self {
+            mass: 0.1,
+            spring: 0.1,
+            friction: 0.5,
+            resistance: 0.2,
+        }
+    }
+
+    /// Checks every tolerance is finite and within `[0, 1)`.
+    ///
+    /// # Errors
+    /// The first bad tolerance, by name.
+    pub fn validate(&self) -> Result<(), Error> {
+        let below_one = 1.0 - f32::EPSILON;
+        config::within("plant.tolerance.mass", self.mass, 0.0, below_one)?;
+        config::within("plant.tolerance.spring", self.spring, 0.0, below_one)?;
+        config::within("plant.tolerance.friction", self.friction, 0.0, below_one)?;
+        config::within(
+            "plant.tolerance.resistance",
+            self.resistance,
+            0.0,
+            below_one,
+        )?;
+        Ok(())
+    }
+}
+
+impl Default for Tolerance {
+    fn default() -> Self {
+        Self::paper()
+    }
+}
+
+/// The dynamics a controller evaluates at run time: mechanics and the force map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Dynamics {
+    /// Moving mass \[kg\].
+    pub mass_kg: f32,
+    /// Spring constant \[N/m\].
+    pub spring_n_per_m: f32,
+    /// Viscous friction \[N s/m\].
+    pub friction_n_s_per_m: f32,
+    /// Reluctance network for the force `mu(g) x3^2 / 2`.
+    pub circuit: Nominal,
+    /// Position convention.
+    pub convention: Convention,
+}
+
+impl Dynamics {
+    /// Acceleration \[m/s^2\] at `(x, v)` with coil current `i`.
+    #[inline]
+    #[must_use]
+    pub fn acceleration_mps2(&self, x_m: f32, v_mps: f32, i_a: f32) -> f32 {
+        let mu = self
+            .circuit
+            .force_coefficient_h_per_m(self.convention.gap_m(x_m));
+        (0.5 * mu * i_a * i_a - self.spring_n_per_m * x_m - self.friction_n_s_per_m * v_mps)
+            / self.mass_kg
+    }
+}
+
 /// The nominal actuator as the controller knows it: mechanics, coil, magnetic circuit,
 /// uncertainty bounds, position convention and stroke.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -481,6 +576,9 @@ pub struct Plant {
     pub convention: Convention,
     /// Mechanical stroke: positions run over `0..=stroke_m` \[m\].
     pub stroke_m: f32,
+    /// Relative uncertainty of mass, spring, friction and resistance.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub tolerance: Tolerance,
 }
 
 /// Stroke of the default actuator \[m\].
@@ -511,7 +609,43 @@ impl Plant {
             bounds,
             convention,
             stroke_m: PAPER_STROKE_M,
+            tolerance: Tolerance::paper(),
         }
+    }
+
+    /// The nominal dynamics: nominal mechanics, surface at the centre of its bounds.
+    ///
+    /// # Errors
+    /// As [`Plant::validate`].
+    pub fn nominal_dynamics(&self) -> Result<Dynamics, Error> {
+        let envelope = self.envelope()?;
+        Ok(Dynamics {
+            mass_kg: self.mass_kg,
+            spring_n_per_m: self.spring_n_per_m,
+            friction_n_s_per_m: self.friction_n_s_per_m,
+            circuit: envelope.nominal(),
+            convention: self.convention,
+        })
+    }
+
+    /// The robust design dynamics: every uncertain parameter at the bound that makes the
+    /// actuator slowest to follow a force command: the weakest magnet (`rho_x_hi`, so
+    /// `mu = mu_lo` wherever `g > rho_0 / rho_x_lo`), the heaviest armature, the softest
+    /// spring and the most friction. A law built on it never meets a plant weaker than its
+    /// model; this is the paper's choice of `mu_lo` for `x3d`, applied to every parameter.
+    ///
+    /// # Errors
+    /// As [`Plant::validate`].
+    pub fn robust_dynamics(&self) -> Result<Dynamics, Error> {
+        let envelope = self.envelope()?;
+        let t = &self.tolerance;
+        Ok(Dynamics {
+            mass_kg: self.mass_kg * (1.0 + t.mass),
+            spring_n_per_m: self.spring_n_per_m * (1.0 - t.spring),
+            friction_n_s_per_m: self.friction_n_s_per_m * (1.0 + t.friction),
+            circuit: envelope.weakest(),
+            convention: self.convention,
+        })
     }
 
     /// The airgap \[m\] at position `x_m`.
@@ -543,6 +677,7 @@ impl Plant {
         config::positive("plant.stroke_m", self.stroke_m)?;
         self.magnetics.validate()?;
         self.bounds.validate()?;
+        self.tolerance.validate()?;
         if let Convention::Physical { gap_at_zero_m } = self.convention {
             config::finite("plant.convention.gap_at_zero_m", gap_at_zero_m)?;
             if gap_at_zero_m <= self.stroke_m {
@@ -705,6 +840,30 @@ mod tests {
         assert_eq!(
             p.validate().unwrap_err().param,
             "plant.convention.gap_at_zero_m"
+        );
+    }
+
+    #[test]
+    fn robust_dynamics_sit_at_the_unfavourable_bounds() {
+        let p = Plant::paper();
+        let d = p.robust_dynamics().unwrap();
+        assert!(close(d.mass_kg, 0.11, 1e-6));
+        assert!(close(d.spring_n_per_m, 108.0, 1e-6));
+        assert!(close(d.friction_n_s_per_m, 7.5, 1e-6));
+        let env = p.envelope().unwrap();
+        for g in [1e-4_f32, 1e-3, 3e-3] {
+            let mu = d.circuit.force_coefficient_h_per_m(g);
+            assert!(close(mu, env.mu_lo(g), 1e-6), "{g}");
+        }
+        let n = p.nominal_dynamics().unwrap();
+        assert!(close(n.mass_kg, 0.1, 1e-7));
+        let mu = n.circuit.force_coefficient_h_per_m(3e-3);
+        assert!(close(mu, p.magnetics.force_coefficient_h_per_m(3e-3), 1e-5));
+        let mut bad = p;
+        bad.tolerance.friction = 1.0;
+        assert_eq!(
+            bad.validate().unwrap_err().param,
+            "plant.tolerance.friction"
         );
     }
 

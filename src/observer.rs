@@ -22,7 +22,21 @@
 //! error, which keeps the position noise out of the velocity estimate.
 
 use crate::config::{self, Error};
-use crate::model::{Convention, Nominal, Plant};
+use crate::model::{Dynamics, Plant};
+
+/// Which model of the actuator the observer predicts with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum Model {
+    /// [`Plant::nominal_dynamics`].
+    #[default]
+    Nominal,
+    /// [`Plant::robust_dynamics`]: must match a law built on it, so that the disturbance
+    /// estimate is exactly what that law's model does not explain.
+    Robust,
+}
 
 /// Observer design parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,16 +48,25 @@ pub struct Gains {
     pub bandwidth_rad_s: f32,
     /// Also estimate the acceleration disturbance `d`.
     pub disturbance: bool,
+    /// Model used for the prediction.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub model: Model,
 }
 
 impl Gains {
-    /// Builds the observer for `plant` at the sample period `ts_s`.
+    /// Builds the observer for `plant` at the sample period `ts_s`. With `delay_ticks = 1`
+    /// the measurement of a tick is one period old and the estimate given to the law is the
+    /// one-step prediction (the state now, not at the sample).
     ///
     /// # Errors
     /// Invalid plant parameters; a bandwidth that is not finite or not positive; a
     /// bandwidth above the Nyquist rate `pi / Ts` (the discrete poles would not be real).
-    pub fn build(&self, plant: &Plant, ts_s: f32) -> Result<Config, Error> {
-        let envelope = plant.envelope()?;
+    pub fn build(&self, plant: &Plant, ts_s: f32, delay_ticks: u8) -> Result<Config, Error> {
+        let dynamics = match self.model {
+            Model::Nominal => plant.nominal_dynamics()?,
+            Model::Robust => plant.robust_dynamics()?,
+        };
+        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
         config::positive("observer.ts_s", ts_s)?;
         config::positive("observer.bandwidth_rad_s", self.bandwidth_rad_s)?;
         config::within(
@@ -69,11 +92,8 @@ impl Gains {
             k3,
             ts_s,
             half_ts_sq: 0.5 * ts_s * ts_s,
-            inv_m: 1.0 / plant.mass_kg,
-            spring_n_per_m: plant.spring_n_per_m,
-            friction_n_s_per_m: plant.friction_n_s_per_m,
-            nominal: envelope.nominal(),
-            convention: plant.convention,
+            dynamics,
+            delayed: delay_ticks > 0,
         })
     }
 }
@@ -88,11 +108,8 @@ pub struct Config {
     k3: f32,
     ts_s: f32,
     half_ts_sq: f32,
-    inv_m: f32,
-    spring_n_per_m: f32,
-    friction_n_s_per_m: f32,
-    nominal: Nominal,
-    convention: Convention,
+    dynamics: Dynamics,
+    delayed: bool,
 }
 
 /// Observer state: the prediction for the next sample.
@@ -134,19 +151,15 @@ impl Config {
         (self.k1, self.k2, self.k3)
     }
 
-    /// Nominal acceleration \[m/s^2\] at `(x, v)` with coil current `i`.
-    #[inline]
+    /// The model the observer predicts with.
     #[must_use]
-    pub fn acceleration_mps2(&self, x_m: f32, v_mps: f32, i_a: f32) -> f32 {
-        let mu = self
-            .nominal
-            .force_coefficient_h_per_m(self.convention.gap_m(x_m));
-        (0.5 * mu * i_a * i_a - self.spring_n_per_m * x_m - self.friction_n_s_per_m * v_mps)
-            * self.inv_m
+    pub const fn dynamics(&self) -> &Dynamics {
+        &self.dynamics
     }
 
     /// Takes the position measurement `y_m` and the coil current `i_a` of this sample,
-    /// returns the estimate and prepares the prediction for the next sample.
+    /// returns the estimate (of the state at the sample, or now when the measurement is
+    /// delayed) and prepares the prediction for the next sample.
     #[inline]
     pub fn update(&self, state: &mut State, y_m: f32, i_a: f32) -> Estimate {
         let est = if state.primed {
@@ -163,14 +176,22 @@ impl Config {
                 d_mps2: 0.0,
             }
         };
-        let a = self.acceleration_mps2(est.x_m, est.v_mps, i_a) + est.d_mps2;
+        let a = self.dynamics.acceleration_mps2(est.x_m, est.v_mps, i_a) + est.d_mps2;
         *state = State {
             x_m: est.x_m + self.ts_s * est.v_mps + self.half_ts_sq * a,
             v_mps: est.v_mps + self.ts_s * a,
             d_mps2: est.d_mps2,
             primed: true,
         };
-        est
+        if self.delayed {
+            Estimate {
+                x_m: state.x_m,
+                v_mps: state.v_mps,
+                d_mps2: state.d_mps2,
+            }
+        } else {
+            est
+        }
     }
 }
 
@@ -188,8 +209,9 @@ mod tests {
         let o = Gains {
             bandwidth_rad_s: w,
             disturbance: false,
+            model: Model::Nominal,
         }
-        .build(&plant, TS)
+        .build(&plant, TS, 0)
         .unwrap();
         let (k1, k2, _) = o.correction();
         // M = [[1 - k1 - Ts k2, Ts], [-k2, 1]]: trace 2p, det p^2.
@@ -209,8 +231,9 @@ mod tests {
         let o = Gains {
             bandwidth_rad_s: 1_000.0,
             disturbance: true,
+            model: Model::Nominal,
         }
-        .build(&plant, TS)
+        .build(&plant, TS, 0)
         .unwrap();
         let mut st = State::default();
         // Truth (f64, fine steps): x'' = (-K x - lambda v)/m + d0, no current.
@@ -256,8 +279,9 @@ mod tests {
         let o = Gains {
             bandwidth_rad_s: 1_000.0,
             disturbance: false,
+            model: Model::Nominal,
         }
-        .build(&Plant::paper(), TS)
+        .build(&Plant::paper(), TS, 0)
         .unwrap();
         let mut st = State::default();
         let est = o.update(&mut st, 2e-3, 0.0);
@@ -270,8 +294,9 @@ mod tests {
         let e = Gains {
             bandwidth_rad_s: 1e6,
             disturbance: false,
+            model: Model::Nominal,
         }
-        .build(&Plant::paper(), TS)
+        .build(&Plant::paper(), TS, 0)
         .unwrap_err();
         assert_eq!(e.param, "observer.bandwidth_rad_s");
     }

@@ -16,14 +16,14 @@
 //! | 0 | 4 | magic `b"EMAT"` |
 //! | 4 | 2 | format version ([`VERSION`]) |
 //! | 6 | 2 | header length in bytes (64) |
-//! | 8 | 2 | record length in bytes ([`RECORD_LEN`] = 26) |
+//! | 8 | 2 | record length in bytes ([`RECORD_LEN`] = 27) |
 //! | 10 | 2 | `max_duty` of the PWM the bridge drove (the duty codes depend on it) |
 //! | 12 | 4 | number of ticks (records) |
 //! | 16 | 8 | settings identity: [`settings_hash`] of the [`Settings`] the trace was made with |
 //! | 24 | 20 | case name, UTF-8, NUL-padded: which entry of [`CASES`] rebuilds the settings |
 //! | 44 | 20 | law name ([`crate::law::Config::name`]), UTF-8, NUL-padded |
 //!
-//! Then one record of [`RECORD_LEN`] = 26 bytes per tick:
+//! Then one record of [`RECORD_LEN`] = 27 bytes per tick:
 //!
 //! | offset | size | field |
 //! |---|---|---|
@@ -31,28 +31,32 @@
 //! | 2 | 2 | input: coil-current code |
 //! | 4 | 2 | input: bus-voltage code |
 //! | 6 | 4 | input: set point \[m\], `f32` bits |
-//! | 10 | 4 | output: law command `u` \[V\] before saturation ([`crate::law::Output::u_v`]), `f32` bits |
-//! | 14 | 4 | output: voltage applied by the bridge \[V\] ([`crate::bridge::Drive::u_v`]), `f32` bits |
-//! | 18 | 4 | output: desired current \[A\] ([`crate::law::Output::i_d_a`]), `f32` bits |
-//! | 22 | 2 | output: PWM duty code |
-//! | 24 | 1 | output: bridge mode (0 coast, 1 forward, 2 reverse) |
-//! | 25 | 1 | output: latched fault code ([`Fault::code`]), 0 for none |
+//! | 10 | 1 | input: flags; bit 0: [`Config::rearm`] before this tick; other bits 0 |
+//! | 11 | 4 | output: law command `u` \[V\] before saturation ([`crate::law::Output::u_v`]), `f32` bits |
+//! | 15 | 4 | output: voltage applied by the bridge \[V\] ([`crate::bridge::Drive::u_v`]), `f32` bits |
+//! | 19 | 4 | output: desired current \[A\] ([`crate::law::Output::i_d_a`]), `f32` bits |
+//! | 23 | 2 | output: PWM duty code |
+//! | 25 | 1 | output: bridge mode (0 coast, 1 forward, 2 reverse) |
+//! | 26 | 1 | output: latched fault code ([`Fault::code`]), 0 for none |
 //!
 //! Every `NaN` is stored as [`CANONICAL_NAN`]: NaN payloads legitimately differ between
 //! x86-64 and the Cortex-M4F (DESIGN section 5), every finite and infinite value must not.
-//! 10 000 ticks take 260 kB, so a trace fits in the flash of the emulated STM32F405 next
-//! to the test program.
+//! 10 000 ticks take 270 kB: three traces fit in the 1 MiB flash of the emulated
+//! STM32F405 next to the test program.
 //!
 //! # Replay semantics
 //!
 //! The tick starts from [`Config::initial_state`] and a bridge fresh from
 //! [`HBridge::new`] (coasting) whose PWM reports the header's `max_duty`; the records are
-//! applied in order with [`Config::tick`]; nothing else happens between ticks (no re-arm).
+//! applied in order with [`Config::tick`], preceded by [`Config::rearm`] where the record's
+//! flag says so (a generator re-arms after a latched fault to keep the tick running its
+//! whole path); nothing else happens between ticks.
 //!
 //! # Writing a trace (the generator's side)
 //!
-//! For each tick call [`tick_record`] instead of [`Config::tick`]: it runs the tick and
-//! returns the [`Record`] to append ([`Record::encode`]). Write [`Header::encode`] first.
+//! For each tick call [`tick_record`] instead of [`Config::tick`]: it re-arms first if
+//! asked, runs the tick and returns the [`Record`] to append ([`Record::encode`]). Write
+//! [`Header::encode`] first.
 
 use core::fmt;
 
@@ -71,7 +75,7 @@ pub const VERSION: u16 = 1;
 /// Header length \[bytes\].
 pub const HEADER_LEN: usize = 64;
 /// Record length \[bytes\].
-pub const RECORD_LEN: usize = 26;
+pub const RECORD_LEN: usize = 27;
 /// Length of the case and law name fields \[bytes\].
 pub const NAME_LEN: usize = 20;
 /// The one `NaN` bit pattern a trace stores.
@@ -94,13 +98,38 @@ fn paper_20khz_24v() -> Settings {
     Settings::paper(20_000.0, 24.0)
 }
 
+/// The paper's law with its boundary layer, one sample of measurement delay, otherwise as
+/// [`paper_20khz_24v`].
+fn boundary_layer_20khz_24v() -> Settings {
+    Settings {
+        law: crate::law::Settings::BoundaryLayer(crate::law::paper::Gains::paper()),
+        delay_ticks: 1,
+        ..Settings::paper(20_000.0, 24.0)
+    }
+}
+
+/// The product's default (the practical discrete-time law) at 20 kHz from a 24 V bus.
+fn practical_20khz_24v() -> Settings {
+    Settings::practical(20_000.0, 24.0)
+}
+
 /// The reference configurations, one per law variant of [`crate::law::Settings`]. Golden
 /// traces, the bit-exactness checks and the per-law instruction counts on the Cortex-M4F
 /// all iterate over this list; a new law gets its entry here.
-pub const CASES: &[Case] = &[Case {
-    name: "paper",
-    settings: paper_20khz_24v,
-}];
+pub const CASES: &[Case] = &[
+    Case {
+        name: "paper",
+        settings: paper_20khz_24v,
+    },
+    Case {
+        name: "boundary_layer",
+        settings: boundary_layer_20khz_24v,
+    },
+    Case {
+        name: "practical",
+        settings: practical_20khz_24v,
+    },
+];
 
 /// The case called `name`.
 #[must_use]
@@ -221,7 +250,12 @@ pub struct Input {
     pub frame: Frame,
     /// Set point \[m\].
     pub setpoint_m: f32,
+    /// [`Config::rearm`] before the tick.
+    pub rearm: bool,
 }
+
+/// Flag bit of [`Input::rearm`].
+const FLAG_REARM: u8 = 1;
 
 /// Outputs of one tick, as bit patterns (so that `==` is bit-exact).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -307,6 +341,7 @@ impl Record {
         w.put(&self.input.frame.current.to_le_bytes());
         w.put(&self.input.frame.vbus.to_le_bytes());
         w.put(&bits(self.input.setpoint_m).to_le_bytes());
+        w.put(&[if self.input.rearm { FLAG_REARM } else { 0 }]);
         w.put(&self.output.u_cmd.to_le_bytes());
         w.put(&self.output.u_applied.to_le_bytes());
         w.put(&self.output.i_d.to_le_bytes());
@@ -325,6 +360,7 @@ impl Record {
             vbus: u16::from_le_bytes(r.take()),
         };
         let setpoint_m = f32::from_bits(u32::from_le_bytes(r.take()));
+        let rearm = u8::from_le_bytes(r.take()) & FLAG_REARM != 0;
         let output = Output {
             u_cmd: u32::from_le_bytes(r.take()),
             u_applied: u32::from_le_bytes(r.take()),
@@ -334,26 +370,36 @@ impl Record {
             fault: u8::from_le_bytes(r.take()),
         };
         Self {
-            input: Input { frame, setpoint_m },
+            input: Input {
+                frame,
+                setpoint_m,
+                rearm,
+            },
             output,
         }
     }
 }
 
-/// One tick as the golden generator records it: [`Config::tick`] on `frame` and
-/// `setpoint_m`, and the record of what went in and came out.
+/// One tick as the golden generator records it: [`Config::rearm`] first when `rearm`,
+/// then [`Config::tick`] on `frame` and `setpoint_m`; returns the tick's status and the
+/// record of what went in and came out.
 pub fn tick_record<P: SetDutyCycle, O: OutputPin>(
     cfg: &Config,
     state: &mut State,
     bridge: &mut HBridge<P, O>,
     frame: &Frame,
     setpoint_m: f32,
+    rearm: bool,
 ) -> (Status, Record) {
+    if rearm {
+        cfg.rearm(state);
+    }
     let status = cfg.tick(state, bridge, frame, setpoint_m);
     let record = Record {
         input: Input {
             frame: *frame,
             setpoint_m,
+            rearm,
         },
         output: Output::of(&status),
     };
@@ -520,6 +566,7 @@ pub fn replay<P: SetDutyCycle, O: OutputPin>(
             bridge,
             &rec.input.frame,
             rec.input.setpoint_m,
+            rec.input.rearm,
         );
         if let Some((field, expected, actual)) = rec.output.first_difference(&now.output) {
             return Err(Mismatch {
@@ -618,24 +665,25 @@ mod tests {
         }
     }
 
-    /// A short trace of `case` with a position ramp, then a sensor on the rail.
+    /// A short trace of `case` with a position ramp (re-armed after every fault the
+    /// synthetic codes cause), then the position sensor on its rail for 3 ticks.
     fn make(case: &Case, ticks: u32) -> Vec<u8> {
         let cfg = (case.settings)().build().unwrap();
         let mut st = cfg.initial_state();
         let mut b = HBridge::new(Pwm(4201), Pin, Pin).unwrap();
         let mut out = Vec::from(Header::new(case, &cfg, 4201, ticks).encode());
+        let mut tripped = false;
         for k in 0..u16::try_from(ticks).unwrap() {
-            let position = if u32::from(k) + 3 == ticks {
-                0
-            } else {
-                1000 + k
-            };
+            let rail = u32::from(k) + 3 >= ticks;
+            let position = if rail { 0 } else { 1000 + k };
             let frame = Frame {
                 position,
                 current: 2048 + k % 50,
                 vbus: 1354,
             };
-            let (_, rec) = tick_record(&cfg, &mut st, &mut b, &frame, 3e-3);
+            let rearm = tripped && !rail;
+            let (status, rec) = tick_record(&cfg, &mut st, &mut b, &frame, 3e-3, rearm);
+            tripped = status.fault.is_some();
             out.extend_from_slice(&rec.encode());
         }
         out
@@ -663,6 +711,7 @@ mod tests {
                     vbus: 0xfffe,
                 },
                 setpoint_m: 3e-3,
+                rearm: true,
             },
             output: Output {
                 u_cmd: 0xdead_beef,
@@ -675,7 +724,8 @@ mod tests {
         };
         let e = r.encode();
         assert_eq!(e[2..4], [0x03, 0x02]);
-        assert_eq!(e[24..], [2, 15]);
+        assert_eq!(e[10], 1);
+        assert_eq!(e[25..], [2, 15]);
         assert_eq!(Record::decode(&e), r);
         let mut t = Vec::from(bytes);
         for _ in 0..7 {
@@ -706,7 +756,7 @@ mod tests {
         bad[4] = 9;
         assert_eq!(Trace::parse(&bad).unwrap_err(), FormatError::Version(9));
         let mut bad = good.clone();
-        bad[8] = 27;
+        bad[8] = 26;
         assert_eq!(Trace::parse(&bad).unwrap_err(), FormatError::Layout);
         let mut bad = good.clone();
         bad[16] ^= 1;
@@ -723,11 +773,13 @@ mod tests {
         assert_eq!(trace.header().max_duty, 4201);
         let mut b = HBridge::new(Pwm(4201), Pin, Pin).unwrap();
         assert_eq!(replay(&trace, &cfg, &mut b), Ok(40));
+        // The synthetic codes trip the monitors: the trace re-arms, and the replay follows.
+        assert!(trace.records().filter(|r| r.input.rearm).count() > 0);
         // The last ticks saw the position sensor on the rail: a latched fault is recorded.
         let last = trace.records().last().unwrap();
         assert_eq!(last.output.fault, Fault::PositionSensor.code());
         // Flip the lowest bit of the desired current of tick 17.
-        t[HEADER_LEN + 17 * RECORD_LEN + 18] ^= 1;
+        t[HEADER_LEN + 17 * RECORD_LEN + 19] ^= 1;
         let (trace, _, cfg) = open(&t).unwrap();
         let mut b = HBridge::new(Pwm(4201), Pin, Pin).unwrap();
         let m = replay(&trace, &cfg, &mut b).unwrap_err();

@@ -46,11 +46,12 @@ fn golden(name: &str) -> PathBuf {
         .join(format!("{name}.emat"))
 }
 
-const REGENERATE: &str = "regenerate with `cargo run --example golden_open_loop` (temporary \
-                          open-loop generator) once the change is intended";
+const REGENERATE: &str = "regenerate with `cargo run --release --example golden_generate` \
+                          (temporary generator) once the change is intended";
 
 #[test]
 fn every_case_has_a_current_trace_that_replays_bit_for_bit() {
+    let mut reverse = 0;
     for case in CASES {
         let path = golden(case.name);
         let bytes = std::fs::read(&path)
@@ -65,19 +66,23 @@ fn every_case_has_a_current_trace_that_replays_bit_for_bit() {
             Ok(n) => assert_eq!(n, ticks),
             Err(m) => panic!("{}: stale trace, {m}; {REGENERATE}", case.name),
         }
-        // The trace exercises the running tick in both directions and a latched fault.
-        let (mut fwd, mut rev, mut fault) = (0, 0, 0);
+        // Most ticks run the whole path (the paper's law re-arms often, the others hardly),
+        // the bridge drives, and the trace ends in a latched fault.
+        let (mut running, mut fwd) = (0, 0);
         for r in trace.records() {
+            running += u32::from(r.output.fault == 0);
             fwd += u32::from(r.output.mode == 1);
-            rev += u32::from(r.output.mode == 2);
-            fault += u32::from(r.output.fault != 0);
+            reverse += u32::from(r.output.mode == 2);
         }
         assert!(
-            fwd > 100 && rev > 100 && fault > 0,
-            "{}: {fwd} forward, {rev} reverse, {fault} faulted",
+            running >= ticks / 2 && fwd > 100,
+            "{}: {running} running, {fwd} forward",
             case.name
         );
+        assert_ne!(trace.records().last().map(|r| r.output.fault), Some(0));
     }
+    // Some law reverses the bridge (the practical one never needs to).
+    assert!(reverse > 10, "{reverse} reverse ticks in all traces");
 }
 
 #[test]
@@ -100,6 +105,8 @@ fn the_target_check_includes_every_trace() {
 fn case_of(law: &law::Settings) -> &'static str {
     match law {
         law::Settings::Paper(_) => "paper",
+        law::Settings::BoundaryLayer(_) => "boundary_layer",
+        law::Settings::Discrete(_) => "practical",
     }
 }
 

@@ -20,7 +20,14 @@ fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
 }
 
 /// Every golden trace, by case name.
-const TRACES: &[(&str, &[u8])] = &[("paper", include_bytes!("golden/paper.emat"))];
+const TRACES: &[(&str, &[u8])] = &[
+    ("paper", include_bytes!("golden/paper.emat")),
+    (
+        "boundary_layer",
+        include_bytes!("golden/boundary_layer.emat"),
+    ),
+    ("practical", include_bytes!("golden/practical.emat")),
+];
 
 #[entry]
 fn main() -> ! {

@@ -5,6 +5,8 @@
 //! saturates to the supply itself (the supervisor and the bridge do), never fails and never
 //! panics; a non-finite output is caught by the supervisor and becomes a fault.
 
+pub mod boundary;
+pub mod discrete;
 pub mod paper;
 
 /// Reference trajectory at the current tick.
@@ -48,6 +50,9 @@ pub struct Input {
     pub disturbance_mps2: f32,
     /// Reference.
     pub reference: Reference,
+    /// Average coil voltage the bridge applied over the previous period \[V\] (for the
+    /// prediction across the measurement delay).
+    pub u_prev_v: f32,
 }
 
 /// What a law asks for at one tick.
@@ -80,12 +85,18 @@ pub trait Law {
     serde(tag = "law", rename_all = "snake_case", deny_unknown_fields)
 )]
 pub enum Settings {
-    /// The paper's law.
+    /// The paper's law ([`paper`]).
     Paper(paper::Gains),
+    /// The paper's law with a boundary layer derived from the discrete stability condition
+    /// ([`boundary`]).
+    BoundaryLayer(paper::Gains),
+    /// The practical discrete-time law ([`discrete`]).
+    Discrete(discrete::Gains),
 }
 
 impl Settings {
-    /// Validates the gains against `plant` and builds the law for the sample period `ts_s`.
+    /// Validates the gains against `plant` and builds the law for the sample period `ts_s`
+    /// and a measurement delay of `delay_ticks` samples.
     ///
     /// # Errors
     /// The first invalid parameter, by name.
@@ -93,9 +104,24 @@ impl Settings {
         &self,
         plant: &crate::model::Plant,
         ts_s: f32,
+        delay_ticks: u8,
     ) -> Result<Config, crate::config::Error> {
+        Ok(match self {
+            Settings::Paper(gains) => Config::Paper(gains.build(plant, ts_s)?),
+            Settings::BoundaryLayer(gains) => {
+                Config::BoundaryLayer(boundary::Config::build(gains, plant, ts_s, delay_ticks)?)
+            }
+            Settings::Discrete(gains) => Config::Discrete(gains.build(plant, ts_s, delay_ticks)?),
+        })
+    }
+
+    /// Short name of the law, as in configuration files.
+    #[must_use]
+    pub const fn name(&self) -> &'static str {
         match self {
-            Settings::Paper(gains) => Ok(Config::Paper(gains.build(plant, ts_s)?)),
+            Settings::Paper(_) => "paper",
+            Settings::BoundaryLayer(_) => "boundary_layer",
+            Settings::Discrete(_) => "discrete",
         }
     }
 }
@@ -106,14 +132,20 @@ impl Settings {
 pub enum Config {
     /// The paper's law exactly as published ([`paper`]).
     Paper(paper::Config),
+    /// The paper's law with a boundary layer ([`boundary`]).
+    BoundaryLayer(boundary::Config),
+    /// The practical discrete-time law ([`discrete`]).
+    Discrete(discrete::Config),
 }
 
 /// State of the selected law.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum State {
-    /// State of [`Config::Paper`].
+    /// State of [`Config::Paper`] and [`Config::BoundaryLayer`].
     Paper(paper::State),
+    /// State of [`Config::Discrete`].
+    Discrete(discrete::State),
 }
 
 impl Config {
@@ -121,7 +153,8 @@ impl Config {
     #[must_use]
     pub fn initial_state(&self) -> State {
         match self {
-            Config::Paper(_) => State::Paper(paper::State::default()),
+            Config::Paper(_) | Config::BoundaryLayer(_) => State::Paper(paper::State::default()),
+            Config::Discrete(_) => State::Discrete(discrete::State::default()),
         }
     }
 
@@ -130,6 +163,8 @@ impl Config {
     pub const fn name(&self) -> &'static str {
         match self {
             Config::Paper(_) => "paper",
+            Config::BoundaryLayer(_) => "boundary_layer",
+            Config::Discrete(_) => "discrete",
         }
     }
 }
@@ -145,13 +180,20 @@ impl Law for Config {
 
     #[inline]
     fn step(&self, state: &mut State, input: &Input) -> Output {
-        match (self, state) {
+        match (self, &mut *state) {
             (Config::Paper(law), State::Paper(s)) => law.step(s, input),
-            #[allow(unreachable_patterns)]
-            (law, state) => {
-                // A state of another law: start this law from its initial state.
-                *state = law.initial_state();
-                law.step(state, input)
+            (Config::BoundaryLayer(law), State::Paper(s)) => law.step(s, input),
+            (Config::Discrete(law), State::Discrete(s)) => law.step(s, input),
+            _ => {
+                // A state of another law: start this law from its initial state. The
+                // second call matches one of the arms above.
+                *state = self.initial_state();
+                match (self, state) {
+                    (Config::Paper(law), State::Paper(s)) => law.step(s, input),
+                    (Config::BoundaryLayer(law), State::Paper(s)) => law.step(s, input),
+                    (Config::Discrete(law), State::Discrete(s)) => law.step(s, input),
+                    _ => Output::default(),
+                }
             }
         }
     }

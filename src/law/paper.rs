@@ -248,10 +248,23 @@ pub struct State {
     pub primed: bool,
 }
 
-impl Law for Config {
-    type State = State;
+/// The quantities both the paper's law and its boundary-layer variant switch on.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sliding {
+    /// Airgap \[m\].
+    pub g_m: f32,
+    /// Desired current `x3d` \[A\].
+    pub i_d_a: f32,
+    /// `S = x3 - x3d` \[A\].
+    pub s_a: f32,
+    /// Switching gain `alpha3` \[V\].
+    pub alpha3_v: f32,
+}
 
-    fn step(&self, state: &mut State, input: &Input) -> Output {
+impl Config {
+    /// `x3d`, `S` and `alpha3` at this tick (updates the stored `x3d`).
+    #[inline]
+    pub(crate) fn sliding(&self, state: &mut State, input: &Input) -> Sliding {
         let g = self.convention.gap_m(input.x_m);
         let z1 = input.x_m - input.reference.x_m;
         let z2 = input.v_mps + self.gains.alpha1 * z1;
@@ -275,10 +288,31 @@ impl Law for Config {
             + (input.v_mps * input.i_a).abs() * mu_hi
             + di_d.abs() * l_hi
             + eps;
-        Output {
-            u_v: -alpha3 * math::sign(s),
+        Sliding {
+            g_m: g,
             i_d_a: i_d,
             s_a: s,
+            alpha3_v: alpha3,
+        }
+    }
+
+    /// The bounds envelope the law was built with.
+    #[must_use]
+    pub const fn envelope(&self) -> &Envelope {
+        &self.envelope
+    }
+}
+
+impl Law for Config {
+    type State = State;
+
+    #[inline]
+    fn step(&self, state: &mut State, input: &Input) -> Output {
+        let sl = self.sliding(state, input);
+        Output {
+            u_v: -sl.alpha3_v * math::sign(sl.s_a),
+            i_d_a: sl.i_d_a,
+            s_a: sl.s_a,
         }
     }
 }
@@ -302,6 +336,7 @@ mod tests {
             vbus_v: 150.0,
             disturbance_mps2: 0.0,
             reference: Reference::hold(r_m),
+            u_prev_v: 0.0,
         }
     }
 

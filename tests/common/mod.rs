@@ -1,19 +1,19 @@
 //! Shared by the on-target test binaries (`tests/qemu_*.rs`): semihosting output and exit,
-//! the TIM2 instruction counter, RAM-backed bridge pins, and a small closed-loop plant that
-//! gives the tick realistic inputs.
+//! the TIM2 instruction counter and RAM-backed bridge pins; `plant` is the small
+//! closed-loop actuator that gives the tick realistic inputs.
 //!
 //! These binaries run on QEMU `-machine netduinoplus2 -cpu cortex-m4` (an STM32F405), see
 //! the `qemu` alias in `.cargo/config.toml`. QEMU's GPIO, ADC and RCC are not usable, so
 //! the bridge writes RAM "registers" with volatile stores instead of the STM32 HAL.
 #![allow(dead_code, unused_macros)]
 
+pub mod plant;
+
 use core::convert::Infallible;
 use core::fmt;
 
 use cortex_m_semihosting::debug;
 use ema::bridge::HBridge;
-use ema::model::Plant;
-use ema::sense::{Calibration, Frame, Measurement};
 // The STM32F405 vector table (cortex-m-rt's `device` feature is on in this package).
 use stm32f4xx_hal as _;
 
@@ -204,106 +204,6 @@ pub fn bridge(max_duty: u16) -> Bridge {
 
 /// PWM resolution of the firmware's TIM1 (ARR + 1).
 pub const FIRMWARE_MAX_DUTY: u16 = 4201;
-
-/// A small closed-loop stand-in for the actuator that gives the tick the inputs of a loop
-/// that works: the mechanics of DESIGN section 2 (nominal magnetics, explicit Euler, 10
-/// sub-steps per tick) driven by a coil current that follows the law's desired current
-/// with a first-order lag of [`Loop::CURRENT_LAG_TICKS`] ticks, plus +-2 codes of converter
-/// noise on every channel.
-///
-/// Why not the bridge voltage: the paper's law, sampled at 20 kHz from a 24 V bus, steps
-/// the current by about 7 A per tick at 1 mm and drives the current sensor onto its rail
-/// within 3 ticks (DESIGN section 3: that is the product's main technical problem). An
-/// instruction count of a tick that sits in its latched-fault path measures nothing
-/// useful, so the current here is what a working inner loop would give. It is not the
-/// simulator (`hil-sim`) and nothing is asserted about the plant.
-pub struct Loop {
-    plant: Plant,
-    cal: Calibration,
-    ts_s: f32,
-    /// Position \[m\].
-    pub x_m: f32,
-    /// Velocity \[m/s\].
-    pub v_mps: f32,
-    /// Coil current \[A\].
-    pub i_a: f32,
-    /// Bus voltage \[V\].
-    pub vbus_v: f32,
-    noise: u32,
-}
-
-impl Loop {
-    /// Time constant of the coil current following the desired current \[ticks\].
-    pub const CURRENT_LAG_TICKS: f32 = 4.0;
-
-    /// At rest at `x_m` with no current, on a `vbus_v` bus.
-    pub fn new(plant: Plant, cal: Calibration, ts_s: f32, x_m: f32, vbus_v: f32) -> Self {
-        Self {
-            plant,
-            cal,
-            ts_s,
-            x_m,
-            v_mps: 0.0,
-            i_a: 0.0,
-            vbus_v,
-            noise: 0x2545_f491,
-        }
-    }
-
-    fn jitter(&mut self) -> i32 {
-        // xorshift32: +-2 codes of converter noise.
-        self.noise ^= self.noise << 13;
-        self.noise ^= self.noise >> 17;
-        self.noise ^= self.noise << 5;
-        (self.noise % 5) as i32 - 2
-    }
-
-    /// The converter codes of the present state, with noise.
-    pub fn frame(&mut self) -> Frame {
-        let ideal = self.cal.frame(&Measurement {
-            x_m: self.x_m,
-            i_a: self.i_a,
-            vbus_v: self.vbus_v,
-        });
-        let noisy = |c: u16, j: i32| (i32::from(c) + j).clamp(0, 4095) as u16;
-        let (a, b, c) = (self.jitter(), self.jitter(), self.jitter());
-        Frame {
-            position: noisy(ideal.position, a),
-            current: noisy(ideal.current, b),
-            vbus: noisy(ideal.vbus, c),
-        }
-    }
-
-    /// Advances one tick with the coil current moving towards `i_target_a`.
-    pub fn advance(&mut self, i_target_a: f32) {
-        let p = &self.plant;
-        let h = self.ts_s / 10.0;
-        let target = if i_target_a.is_finite() {
-            i_target_a
-        } else {
-            0.0
-        };
-        for _ in 0..10 {
-            let g = p.gap_m(self.x_m).max(1e-5);
-            let mu = p.magnetics.force_coefficient_h_per_m(g);
-            let a = (0.5 * self.i_a * self.i_a * mu
-                - p.friction_n_s_per_m * self.v_mps
-                - p.spring_n_per_m * self.x_m)
-                / p.mass_kg;
-            self.i_a += (target - self.i_a) / (10.0 * Self::CURRENT_LAG_TICKS);
-            self.v_mps += h * a;
-            self.x_m += h * self.v_mps;
-            // End stops of the stroke.
-            if self.x_m < 0.0 {
-                self.x_m = 0.0;
-                self.v_mps = 0.0;
-            } else if self.x_m > p.stroke_m {
-                self.x_m = p.stroke_m;
-                self.v_mps = 0.0;
-            }
-        }
-    }
-}
 
 /// Minimum, median and maximum of `v` (sorts it).
 pub fn min_median_max(v: &mut [u32]) -> (u32, u32, u32) {

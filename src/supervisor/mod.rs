@@ -11,6 +11,9 @@ use core::fmt;
 use crate::config::{self, Error};
 use crate::sense::Measurement;
 
+pub mod monitor;
+pub use monitor::Monitors;
+
 /// Fault codes. The numeric value is stable (logged, stored, compared in golden traces).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -36,9 +39,11 @@ pub enum Fault {
     BusOverVoltage = 9,
     /// Position reading does not change while the current (force) does.
     PositionStuck = 10,
-    /// Current reading does not follow the applied voltage (sensor stuck or coil open).
+    /// The current changes less than any admissible coil would under the applied voltage,
+    /// with a non-zero reading: current sensor stuck.
     CurrentStuck = 11,
-    /// Current-sensor zero has drifted (non-zero reading with the coil de-energised).
+    /// The current reading stepped by more than any admissible coil allows in one period:
+    /// current-sensor offset step (or a glitch).
     CurrentOffset = 12,
     /// Position error too large for too long.
     Tracking = 13,
@@ -48,10 +53,18 @@ pub enum Fault {
     Overrun = 15,
     /// A PWM or pin operation of the bridge failed.
     BridgeIo = 16,
+    /// Voltage applied, current stays near zero: coil (or its wiring) open.
+    CoilOpen = 17,
+    /// The current rises far more than any admissible coil allows: shorted turns (the
+    /// resistance or the inductance far below its bound).
+    CoilShort = 18,
+    /// The coil responds outside what the configured bounds admit, moderately: the plant
+    /// is not the one the controller was designed for.
+    ModelBounds = 19,
 }
 
 /// Number of fault codes (codes run `1..=FAULT_COUNT`).
-pub const FAULT_COUNT: usize = 16;
+pub const FAULT_COUNT: usize = 19;
 
 impl Fault {
     /// Every fault, in code order.
@@ -72,6 +85,9 @@ impl Fault {
         Fault::Setpoint,
         Fault::Overrun,
         Fault::BridgeIo,
+        Fault::CoilOpen,
+        Fault::CoilShort,
+        Fault::ModelBounds,
     ];
 
     /// The stable numeric code.
@@ -106,6 +122,9 @@ impl Fault {
             Fault::Setpoint => "setpoint",
             Fault::Overrun => "overrun",
             Fault::BridgeIo => "bridge_io",
+            Fault::CoilOpen => "coil_open",
+            Fault::CoilShort => "coil_short",
+            Fault::ModelBounds => "model_bounds",
         }
     }
 

@@ -1,0 +1,652 @@
+//! Fault detectors that need history: I^2 t, stuck position sensor, the coil's electrical
+//! response, tracking error. Each is optional and runs inside the tick.
+//!
+//! ## Electrical residual
+//!
+//! Between two current samples the bridge applied a known average voltage `u` (the drive
+//! of the tick that lies `delay` ticks before the older sample). Every admissible coil,
+//! inductance `L` in `[L_lo(g), L_hi(g)]` and resistance `R (1 +- tol)`, moves the current
+//! by (Tustin, as the law predicts it)
+//!
+//! ```text
+//! di = (Ts / L) (u - R i) / (1 + R Ts / (2 L))
+//! ```
+//!
+//! The four corners bound the admissible change; the interval is widened by a relative
+//! `margin` and an absolute `noise_a`. A measured change outside it is evidence against
+//! the coil or the sensor:
+//!
+//! | evidence | fault |
+//! |---|---|
+//! | one isolated step beyond the interval by more than `jump_a`, the next step admissible again | [`Fault::CurrentOffset`] (a step in the reading no coil can make; found one tick later) |
+//! | `ticks` in a row below, current near 0 | [`Fault::CoilOpen`] |
+//! | `ticks` in a row below, summed change under `1/gross` of the least admissible | [`Fault::CurrentStuck`] |
+//! | `ticks` in a row above, resistance fitted below `R_lo / gross` | [`Fault::CoilShort`] |
+//! | `ticks` in a row outside otherwise | [`Fault::ModelBounds`] |
+//!
+//! Sums over the run of outside steps, not single steps, decide between "broken" and
+//! "outside the bounds": a single step's admissible change can be close to zero (holding,
+//! `u = R i`), where any ratio is meaningless. Above the interval, the deviation from the
+//! nominal prediction `p = k (u - R i)/(1 + R k/2)` (`k = Ts/L_nom`) is fitted by least
+//! squares over the run as `e = a p + b k i`: `a` is an inductance error, `b` a resistance
+//! deficit. A short is a resistance far below its bound (`R - b < R_lo / gross`); when the
+//! run carries almost no current (`k i` tiny) `b` is not identifiable and the verdict is
+//! `ModelBounds`.
+//!
+//! The motional back-EMF is left out of the prediction: at the speeds of this actuator it
+//! moves the current by less than the noise allowance (about 10 mA per period at 1 mm and
+//! 4 cm/s); it is covered by `noise_a`.
+
+use super::Fault;
+use crate::config::{self, Error};
+use crate::model::{Envelope, Plant};
+
+/// I^2 t protection of the coil.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct Thermal {
+    /// Continuous current rating \[A\].
+    pub continuous_a: f32,
+    /// Allowance above the continuous rating, `integral of (i^2 - I_c^2) dt` \[A^2 s\].
+    pub allowance_a2s: f32,
+}
+
+/// Stuck position sensor: the reading does not change while the reference moves.
+///
+/// "No change while the current changes" is not usable as evidence: in closed loop the
+/// controller changes the current precisely to hold the position against a changing
+/// disturbance, and over a millisecond the armature's mass turns even an ampere of change
+/// into much less than one converter step of motion. A moving reference, which the loop
+/// follows within micrometres, is what must move the reading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct Stuck {
+    /// Ticks with a bit-identical reading before it counts as stuck.
+    pub ticks: u16,
+    /// Reference motion over those ticks that must move the reading \[m\].
+    pub reference_m: f32,
+}
+
+/// Electrical residual (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct Residual {
+    /// Absolute widening of the admissible interval (sensor noise, back-EMF) \[A\].
+    pub noise_a: f32,
+    /// Relative widening of the admissible change \[-\].
+    pub margin: f32,
+    /// Consecutive ticks outside the interval before a fault.
+    pub ticks: u16,
+    /// One-step excess that no coil can produce \[A\].
+    pub jump_a: f32,
+    /// Current below which the coil counts as open \[A\].
+    pub open_a: f32,
+    /// Factor between "outside the bounds" and "broken" \[-\].
+    pub gross: f32,
+}
+
+/// Tracking error too large for too long.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct Tracking {
+    /// Largest tolerated `|x - r|` \[m\].
+    pub error_m: f32,
+    /// How long it may be exceeded \[s\].
+    pub time_s: f32,
+}
+
+/// The optional detectors.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct Monitors {
+    /// I^2 t.
+    pub thermal: Option<Thermal>,
+    /// Stuck position sensor.
+    pub stuck: Option<Stuck>,
+    /// Electrical residual.
+    pub residual: Option<Residual>,
+    /// Tracking error.
+    pub tracking: Option<Tracking>,
+}
+
+impl Monitors {
+    /// Every detector on, with the product's defaults for a current limit `current_max_a`:
+    /// continuous rating 80 % of the limit with 2 A^2 s above it (0.25 s at the limit
+    /// from a cold coil would need 2.6 A^2 s: a limit-long move is fine, a stall is not);
+    /// stuck after 16 identical readings while the reference moved 20 um (25 mm/s);
+    /// residual noise 0.08 A (about 5 sigma of a one-step difference at 1 LSB of noise),
+    /// margin 10 %, 4 ticks, jump 1.5 A, open below 0.2 A, gross factor 2;
+    /// tracking error 0.5 mm for 50 ms.
+    #[must_use]
+    pub fn product(current_max_a: f32) -> Self {
+        Self {
+            thermal: Some(Thermal {
+                continuous_a: 0.8 * current_max_a,
+                allowance_a2s: 2.0,
+            }),
+            stuck: Some(Stuck {
+                ticks: 16,
+                reference_m: 20e-6,
+            }),
+            residual: Some(Residual {
+                noise_a: 0.08,
+                margin: 0.1,
+                ticks: 4,
+                jump_a: 1.5,
+                open_a: 0.2,
+                gross: 2.0,
+            }),
+            tracking: Some(Tracking {
+                error_m: 0.5e-3,
+                time_s: 0.05,
+            }),
+        }
+    }
+
+    /// Validates and builds the detectors for `plant` at the sample period `ts_s` with
+    /// `delay_ticks` of measurement delay.
+    ///
+    /// # Errors
+    /// The first bad parameter, by name.
+    pub fn build(&self, plant: &Plant, ts_s: f32, delay_ticks: u8) -> Result<Config, Error> {
+        let envelope = plant.envelope()?;
+        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+        if let Some(t) = &self.thermal {
+            config::positive("monitors.thermal.continuous_a", t.continuous_a)?;
+            config::positive("monitors.thermal.allowance_a2s", t.allowance_a2s)?;
+        }
+        if let Some(s) = &self.stuck {
+            config::at_least("monitors.stuck.ticks", f32::from(s.ticks), 2.0)?;
+            config::positive("monitors.stuck.reference_m", s.reference_m)?;
+        }
+        if let Some(r) = &self.residual {
+            config::positive("monitors.residual.noise_a", r.noise_a)?;
+            config::at_least("monitors.residual.margin", r.margin, 0.0)?;
+            config::at_least("monitors.residual.ticks", f32::from(r.ticks), 1.0)?;
+            config::positive("monitors.residual.jump_a", r.jump_a)?;
+            config::at_least("monitors.residual.open_a", r.open_a, 0.0)?;
+            config::at_least("monitors.residual.gross", r.gross, 1.0)?;
+        }
+        let tracking_ticks = match &self.tracking {
+            Some(t) => {
+                config::positive("monitors.tracking.error_m", t.error_m)?;
+                let ticks = config::within("monitors.tracking.time_s", t.time_s / ts_s, 1.0, 1e9)?;
+                // In [1, 1e9]: the truncation is the intended rounding down.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let n = ticks as u32;
+                n
+            }
+            None => 0,
+        };
+        let r = plant.resistance_ohm;
+        let tol = plant.tolerance.resistance;
+        Ok(Config {
+            monitors: *self,
+            nominal: envelope.nominal(),
+            envelope,
+            convention: plant.convention,
+            ts_s,
+            r_nom: r,
+            r_lo: r * (1.0 - tol),
+            r_hi: r * (1.0 + tol),
+            tracking_ticks,
+            delayed: delay_ticks > 0,
+        })
+    }
+}
+
+/// The detectors, validated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Config {
+    monitors: Monitors,
+    envelope: Envelope,
+    nominal: crate::model::Nominal,
+    convention: crate::model::Convention,
+    ts_s: f32,
+    r_nom: f32,
+    r_lo: f32,
+    r_hi: f32,
+    tracking_ticks: u32,
+    delayed: bool,
+}
+
+/// History the detectors keep.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct MonitorState {
+    /// `integral of (i^2 - I_c^2) dt`, floored at 0 \[A^2 s\].
+    pub i2t_a2s: f32,
+    x_last: f32,
+    x_same_ticks: u16,
+    r_at_change: f32,
+    i_prev: f32,
+    /// Average voltage applied by the last two drives, newest first, and whether the
+    /// bridge was driving (not coasting) then.
+    u_hist: [(f32, bool); 2],
+    below: u16,
+    above: u16,
+    /// The previous step was the first one outside the interval, by more than `jump_a`.
+    jumped: bool,
+    /// Over the current run of outside steps: sum of `|measured change|`.
+    run_meas: f32,
+    /// Over the current run: sum of the least admissible change.
+    run_adm: f32,
+    /// Least-squares sums over the run: `p p`, `p q`, `q q`, `p e`, `q e`.
+    fit: [f32; 5],
+    off_track: u32,
+    primed: bool,
+}
+
+impl MonitorState {
+    /// Forgets the history except the coil's I^2 t (the coil is still warm).
+    pub fn rearm(&mut self) {
+        *self = Self {
+            i2t_a2s: self.i2t_a2s,
+            ..Self::default()
+        };
+    }
+}
+
+/// What the detectors look at, once per tick.
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs {
+    /// Measured position \[m\].
+    pub x_m: f32,
+    /// Measured current \[A\].
+    pub i_a: f32,
+    /// Reference position \[m\].
+    pub r_m: f32,
+}
+
+impl Config {
+    /// Runs every enabled detector; the first fault found, if any.
+    #[inline]
+    pub fn check(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
+        if !st.primed {
+            *st = MonitorState {
+                x_last: inp.x_m,
+                r_at_change: inp.r_m,
+                i_prev: inp.i_a,
+                primed: true,
+                ..MonitorState::default()
+            };
+            return None;
+        }
+        let fault = self
+            .thermal(st, inp)
+            .or_else(|| self.stuck(st, inp))
+            .or_else(|| self.residual(st, inp))
+            .or_else(|| self.tracking(st, inp));
+        st.i_prev = inp.i_a;
+        fault
+    }
+
+    /// Records the average voltage the bridge applied this tick (`driving = false` when
+    /// it coasts, where the coil voltage is set by the freewheeling current).
+    #[inline]
+    pub fn record_drive(&self, st: &mut MonitorState, u_v: f32, driving: bool) {
+        st.u_hist = [(u_v, driving), st.u_hist[0]];
+    }
+
+    fn thermal(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
+        let t = self.monitors.thermal.as_ref()?;
+        let excess = inp.i_a * inp.i_a - t.continuous_a * t.continuous_a;
+        st.i2t_a2s = (st.i2t_a2s + excess * self.ts_s).max(0.0);
+        (st.i2t_a2s > t.allowance_a2s).then_some(Fault::OverCurrentI2t)
+    }
+
+    fn stuck(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
+        let s = self.monitors.stuck.as_ref()?;
+        if inp.x_m.to_bits() != st.x_last.to_bits() {
+            st.x_last = inp.x_m;
+            st.x_same_ticks = 0;
+            st.r_at_change = inp.r_m;
+            return None;
+        }
+        st.x_same_ticks = st.x_same_ticks.saturating_add(1);
+        let moved = (inp.r_m - st.r_at_change).abs() >= s.reference_m;
+        (st.x_same_ticks >= s.ticks && moved).then_some(Fault::PositionStuck)
+    }
+
+    fn residual(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
+        let r = self.monitors.residual.as_ref()?;
+        // The voltage between the two samples: the drive `delay` ticks before the newer.
+        let (u, driving) = if self.delayed {
+            st.u_hist[1]
+        } else {
+            st.u_hist[0]
+        };
+        if !driving {
+            st.below = 0;
+            st.above = 0;
+            st.jumped = false;
+            return None;
+        }
+        let g = self.convention.gap_m(inp.x_m);
+        let i0 = st.i_prev;
+        let step = |l: f32, res: f32| {
+            let k = self.ts_s / l;
+            k * (u - res * i0) / (1.0 + 0.5 * res * k)
+        };
+        let (l_lo, l_hi) = (self.envelope.l_lo(g), self.envelope.l_hi(g));
+        let corners = [
+            step(l_lo, self.r_lo),
+            step(l_lo, self.r_hi),
+            step(l_hi, self.r_lo),
+            step(l_hi, self.r_hi),
+        ];
+        let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
+        for d in corners {
+            d_min = d_min.min(d);
+            d_max = d_max.max(d);
+        }
+        let widen = r.margin * d_min.abs().max(d_max.abs()) + r.noise_a;
+        let d_meas = inp.i_a - i0;
+        let (lo, hi) = (d_min - widen, d_max + widen);
+        let big = d_meas > hi + r.jump_a || d_meas < lo - r.jump_a;
+        if !(d_meas < lo || d_meas > hi) {
+            // Back inside after a single large excursion: the reading stepped, the coil
+            // did not.
+            let offset = st.jumped && (st.below == 1 || st.above == 1);
+            st.below = 0;
+            st.above = 0;
+            st.jumped = false;
+            return offset.then_some(Fault::CurrentOffset);
+        }
+        let below = d_meas < lo;
+        let first = if below { st.below == 0 } else { st.above == 0 };
+        if first {
+            st.run_meas = 0.0;
+            st.run_adm = 0.0;
+            st.fit = [0.0; 5];
+        }
+        st.jumped = first && big;
+        if below {
+            st.below = st.below.saturating_add(1);
+            st.above = 0;
+            // The least admissible change in the direction the coil is driven.
+            let least = if d_min + d_max > 0.0 {
+                d_min.max(0.0)
+            } else {
+                -(d_max.min(0.0))
+            };
+            st.run_meas += d_meas.abs();
+            st.run_adm += least;
+            if st.below < r.ticks {
+                return None;
+            }
+            if inp.i_a.abs() < r.open_a && i0.abs() < r.open_a {
+                return Some(Fault::CoilOpen);
+            }
+            return Some(if st.run_meas * r.gross < st.run_adm {
+                Fault::CurrentStuck
+            } else {
+                Fault::ModelBounds
+            });
+        }
+        st.above = st.above.saturating_add(1);
+        st.below = 0;
+        let k = self.ts_s / self.nominal.inductance_h(g);
+        let p = k * (u - self.r_nom * i0) / (1.0 + 0.5 * self.r_nom * k);
+        let q = k * i0;
+        let e = d_meas - p;
+        let [pp, pq, qq, pe, qe] = st.fit;
+        st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
+        if st.above < r.ticks {
+            return None;
+        }
+        Some(if self.resistance_fit(&st.fit) < self.r_lo / r.gross {
+            Fault::CoilShort
+        } else {
+            Fault::ModelBounds
+        })
+    }
+
+    /// Resistance fitted over a run above the interval, `R_nom - b` (`R_nom` when `b` is
+    /// not identifiable).
+    fn resistance_fit(&self, fit: &[f32; 5]) -> f32 {
+        let [pp, pq, qq, pe, qe] = *fit;
+        let det = pp * qq - pq * pq;
+        let b = if det > 1e-3 * pp * qq && det > 0.0 {
+            (pp * qe - pq * pe) / det
+        } else if pp <= 1e-3 * qq {
+            // Holding (no drive beyond the resistive drop): all of it is resistance.
+            qe / qq
+        } else {
+            0.0
+        };
+        self.r_nom - b
+    }
+
+    fn tracking(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
+        let t = self.monitors.tracking.as_ref()?;
+        if (inp.x_m - inp.r_m).abs() > t.error_m {
+            st.off_track = st.off_track.saturating_add(1);
+        } else {
+            st.off_track = 0;
+        }
+        (st.off_track >= self.tracking_ticks).then_some(Fault::Tracking)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TS: f32 = 1.0 / 20_000.0;
+
+    fn cfg(delay: u8) -> Config {
+        Monitors::product(12.0)
+            .build(&Plant::paper(), TS, delay)
+            .unwrap()
+    }
+
+    /// Nominal Tustin step of the paper's coil at gap g.
+    fn coil_step(g: f32, u: f32, i: f32, r: f32, l_scale: f32) -> f32 {
+        let l = crate::model::Magnetics::paper().inductance_h(g) * l_scale;
+        let k = TS / l;
+        i + k * (u - r * i) / (1.0 + 0.5 * r * k)
+    }
+
+    fn run(c: &Config, r_ohm: f32, l_scale: f32, sensor: impl Fn(f32) -> f32) -> Option<Fault> {
+        let mut st = MonitorState::default();
+        let mut i = 2.0_f32;
+        let g = 3e-3;
+        for k in 0..200 {
+            // A square wave of +-6 V around the holding voltage.
+            let u = if (k / 20) % 2 == 0 { 6.0 } else { -4.0 };
+            let inp = Inputs {
+                x_m: g + if k % 2 == 0 { 1e-6 } else { 0.0 },
+                i_a: sensor(i),
+                r_m: g,
+            };
+            if let Some(f) = c.check(&mut st, &inp) {
+                return Some(f);
+            }
+            c.record_drive(&mut st, u, true);
+            i = coil_step(g, u, i, r_ohm, l_scale);
+        }
+        None
+    }
+
+    #[test]
+    fn an_admissible_coil_raises_nothing() {
+        let c = cfg(0);
+        for (r, l) in [
+            (0.4, 1.0),
+            (0.32, 0.84),
+            (0.48, 1.24),
+            (0.32, 1.24),
+            (0.48, 0.84),
+        ] {
+            assert_eq!(run(&c, r, l, |i| i), None, "R {r} L x{l}");
+        }
+    }
+
+    #[test]
+    fn broken_coils_and_sensors_are_named() {
+        let c = cfg(0);
+        assert_eq!(run(&c, 0.4, 1.0, |_| 2.0), Some(Fault::CurrentStuck));
+        assert_eq!(run(&c, 0.4, 1.0, |_| 0.0), Some(Fault::CoilOpen));
+        // A coil 70 % more inductive than nominal (the bounds allow 25 %).
+        assert_eq!(run(&c, 0.4, 1.7, |i| i), Some(Fault::ModelBounds));
+    }
+
+    /// The issue's coil short: the resistance drops to 0.05 ohm while the controller holds
+    /// 6 A at 3 mm with the voltage a healthy coil needs (2.4 V).
+    #[test]
+    fn a_shorted_coil_is_caught_while_holding() {
+        let c = cfg(0);
+        let mut st = MonitorState::default();
+        let mut i = 6.0_f32;
+        let mut found = None;
+        for k in 0..50 {
+            let inp = Inputs {
+                x_m: 3e-3 + (k % 2) as f32 * 1e-6,
+                i_a: i,
+                r_m: 3e-3,
+            };
+            if let Some(f) = c.check(&mut st, &inp) {
+                found = Some((f, k));
+                break;
+            }
+            c.record_drive(&mut st, 2.4, true);
+            i = coil_step(3e-3, 2.4, i, 0.05, 1.0);
+        }
+        let (f, k) = found.unwrap();
+        assert_eq!(f, Fault::CoilShort);
+        assert!(k <= 6, "{k}");
+    }
+
+    #[test]
+    fn an_offset_step_is_caught_in_one_tick() {
+        let c = cfg(0);
+        let mut st = MonitorState::default();
+        let inp = |i_a| Inputs {
+            x_m: 3e-3,
+            i_a,
+            r_m: 3e-3,
+        };
+        // Holding 6 A at 2.4 V; the reading steps by +2.5 A and stays offset.
+        assert_eq!(c.check(&mut st, &inp(6.0)), None);
+        c.record_drive(&mut st, 2.4, true);
+        assert_eq!(c.check(&mut st, &inp(6.0)), None);
+        c.record_drive(&mut st, 2.4, true);
+        assert_eq!(c.check(&mut st, &inp(8.5)), None);
+        c.record_drive(&mut st, 2.4, true);
+        assert_eq!(c.check(&mut st, &inp(8.5)), Some(Fault::CurrentOffset));
+    }
+
+    #[test]
+    fn a_frozen_position_during_a_move_is_stuck() {
+        let c = cfg(0);
+        let mut st = MonitorState::default();
+        let mut found = None;
+        for k in 0..40 {
+            let inp = Inputs {
+                x_m: 2e-3,
+                i_a: 5.0,
+                r_m: 2e-3 + k as f32 * 2e-6, // reference moving at 4 cm/s
+            };
+            if let Some(f) = c.check(&mut st, &inp) {
+                found = Some((f, k));
+                break;
+            }
+            c.record_drive(&mut st, 2.0, false);
+        }
+        // The 16th repeat of the first reading, when the reference has moved 32 um > 20 um.
+        assert_eq!(found, Some((Fault::PositionStuck, 16)));
+        // At rest nothing is expected to move: no fault.
+        let mut st = MonitorState::default();
+        for _ in 0..1000 {
+            let inp = Inputs {
+                x_m: 2e-3,
+                i_a: 5.0,
+                r_m: 2e-3,
+            };
+            assert_eq!(c.check(&mut st, &inp), None);
+            c.record_drive(&mut st, 2.0, false);
+        }
+    }
+
+    #[test]
+    fn i2t_allows_a_move_and_trips_a_stall() {
+        let c = cfg(0);
+        let mut st = MonitorState::default();
+        let at = |i_a| Inputs {
+            x_m: 2e-3,
+            i_a,
+            r_m: 2e-3,
+        };
+        c.check(&mut st, &at(12.0));
+        // 0.1 s at 12 A: (144 - 92.16) * 0.1 = 5.2 A^2 s > 2: trips after 2/51.84 = 38.6 ms.
+        let mut tripped = None;
+        for k in 0..2000 {
+            if let Some(f) = c.check(&mut st, &at(12.0)) {
+                tripped = Some((f, k));
+                break;
+            }
+        }
+        let (f, k) = tripped.unwrap();
+        assert_eq!(f, Fault::OverCurrentI2t);
+        assert!((770..=775).contains(&k), "{k}");
+        // Below the rating it cools down to zero.
+        let mut st = MonitorState::default();
+        c.check(&mut st, &at(9.0));
+        for _ in 0..100_000 {
+            assert_eq!(c.check(&mut st, &at(9.0)), None);
+        }
+        assert_eq!(st.i2t_a2s, 0.0);
+    }
+
+    #[test]
+    fn tracking_error_must_last() {
+        let c = cfg(0);
+        let mut st = MonitorState::default();
+        let off = Inputs {
+            x_m: 1e-3,
+            i_a: 1.0,
+            r_m: 3e-3,
+        };
+        c.check(&mut st, &off);
+        let mut n = 0;
+        while c
+            .check(
+                &mut st,
+                &Inputs {
+                    x_m: 1e-3 + (n % 2) as f32 * 1e-6,
+                    ..off
+                },
+            )
+            .is_none()
+        {
+            n += 1;
+            assert!(n < 5000);
+        }
+        // 50 ms at 20 kHz.
+        assert_eq!(n + 1, 1000);
+    }
+
+    #[test]
+    fn bad_monitor_settings_are_named() {
+        let mut m = Monitors::product(12.0);
+        m.residual.as_mut().unwrap().gross = 0.5;
+        let e = m.build(&Plant::paper(), TS, 0).unwrap_err();
+        assert_eq!(e.param, "monitors.residual.gross");
+        let mut m = Monitors::product(12.0);
+        m.tracking.as_mut().unwrap().time_s = 0.0;
+        let e = m.build(&Plant::paper(), TS, 0).unwrap_err();
+        assert_eq!(e.param, "monitors.tracking.time_s");
+    }
+}

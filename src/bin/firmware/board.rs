@@ -152,13 +152,15 @@ pub fn zero_plausible(mean_code: f32, spread_codes: u16) -> bool {
         && spread_codes <= ZERO_MAX_SPREAD_CODES
 }
 
-/// The controller this firmware runs, with the measured current zero (`None`: nominal).
-/// The law, gains and limits are chosen here and nowhere else.
+/// The controller this firmware runs, with the measured current zero (`None`: nominal):
+/// the product's default (`Settings::practical`: the practical discrete-time law, one
+/// sample of measurement delay, which is this firmware's timing, reference shaping and
+/// every fault monitor). The law, gains and limits are chosen here and nowhere else.
 ///
 /// # Errors
 /// A zero outside the converter range.
 pub fn settings(current_zero_code: Option<f32>) -> Result<Settings, config::Error> {
-    let mut s = Settings::paper(CONTROL_RATE_HZ as f32, VBUS_NOMINAL_V);
+    let mut s = Settings::practical(CONTROL_RATE_HZ as f32, VBUS_NOMINAL_V);
     let board = Calibration::board();
     s.sense = match current_zero_code {
         Some(code) => board.with_current_zero(code)?,
@@ -206,6 +208,8 @@ mod tests {
         let s = settings(Some(2051.25)).unwrap();
         assert_eq!(s.sense.current.offset_code, 2051.25);
         assert_eq!(s.rate_hz, 20_000.0);
+        // The firmware's sample-to-duty delay is one period.
+        assert_eq!(s.delay_ticks, 1);
         s.build().unwrap();
         settings(None).unwrap().build().unwrap();
         assert!(settings(Some(9000.0)).is_err());

@@ -61,13 +61,13 @@ const TICK_GOAL: u32 = 300;
 ///
 /// | case | whole tick | law | monitors | shaping | observer | bridge | sense + limits |
 /// |---|---|---|---|---|---|---|---|
-/// | paper | 573/805/862 | 140 | 305 | 28 (none) | 77 | 96 | 54 + 52 |
-/// | boundary_layer | 579/799/827 | 159 | 305 | 28 (none) | 77 | 96 | 54 + 52 |
-/// | practical | 740/957/1279 | 194 | 342 | 110 (449 when a move starts) | 77 | 96 | 54 + 52 |
+/// | paper | 581/821/878 | 140 | 305 | 28 (none) | 90 | 96 | 54 + 53 |
+/// | boundary_layer | 595/815/843 | 159 | 305 | 28 (none) | 90 | 96 | 54 + 53 |
+/// | practical | 756/973/1295 | 194 | 342 | 110 (449 when a move starts) | 90 | 96 | 54 + 53 |
 ///
 /// The fault monitors (I^2 t, stuck sensor, electrical residual with its least-squares
 /// fit, tracking) are the largest item, then the law; the worst tick is the first of a
-/// move under reference shaping, which plans the trajectory. The budget sits about 10 %
+/// move under reference shaping, which plans the trajectory. The budget sits about 8 %
 /// above the measured maximum so that any regression fails the run; reaching the goal
 /// needs cheaper monitors, law and shaping (fewer divides; the monitors' fit and the
 /// shaping's planning spread over ticks), not a looser number. At 168 MHz and about 2

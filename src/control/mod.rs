@@ -166,7 +166,12 @@ impl Settings {
                 Some(s) => Some(s.build(&self.plant, ts_s)?),
                 None => None,
             },
-            monitors: self.monitors.build(&self.plant, ts_s, self.delay_ticks)?,
+            monitors: self.monitors.build(
+                &self.plant,
+                self.sense.current.scale,
+                ts_s,
+                self.delay_ticks,
+            )?,
             sense: self.sense,
             limits: self.limits,
             stroke_m: self.plant.stroke_m,

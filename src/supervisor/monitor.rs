@@ -13,7 +13,9 @@
 //! ```
 //!
 //! The four corners bound the admissible change; the interval is widened by a relative
-//! `margin` and an absolute `noise_a`. A measured change outside it is evidence against
+//! `margin` and by `noise_codes` steps of the current converter (the allowance follows the
+//! calibration: the same board noise is 8 mA per code on a +-16.5 A channel and 20 mA on
+//! a +-40 A one). A measured change outside it is evidence against
 //! the coil or the sensor:
 //!
 //! | evidence | fault |
@@ -35,7 +37,7 @@
 //!
 //! The motional back-EMF is left out of the prediction: at the speeds of this actuator it
 //! moves the current by less than the noise allowance (about 10 mA per period at 1 mm and
-//! 4 cm/s); it is covered by `noise_a`.
+//! 4 cm/s); it is covered by the noise allowance.
 
 use super::Fault;
 use crate::config::{self, Error};
@@ -77,8 +79,9 @@ pub struct Stuck {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Residual {
-    /// Absolute widening of the admissible interval (sensor noise, back-EMF) \[A\].
-    pub noise_a: f32,
+    /// Absolute widening of the admissible interval (sensor noise, back-EMF), in steps of
+    /// the current converter \[code\].
+    pub noise_codes: f32,
     /// Relative widening of the admissible change \[-\].
     pub margin: f32,
     /// Consecutive ticks outside the interval before a fault.
@@ -124,7 +127,8 @@ impl Monitors {
     /// continuous rating 80 % of the limit with 2 A^2 s above it (0.25 s at the limit
     /// from a cold coil would need 2.6 A^2 s: a limit-long move is fine, a stall is not);
     /// stuck after 16 identical readings while the reference moved 20 um (25 mm/s);
-    /// residual noise 0.08 A (about 5 sigma of a one-step difference at 1 LSB of noise),
+    /// residual noise allowance 8 codes (5.6 sigma of a one-step difference at 1 code of
+    /// noise, 3.8 sigma at 1.5 codes; four in a row in the same direction are needed),
     /// margin 10 %, 4 ticks, jump 1.5 A, open below 0.2 A, gross factor 2;
     /// tracking error 0.5 mm for 50 ms.
     #[must_use]
@@ -139,7 +143,7 @@ impl Monitors {
                 reference_m: 20e-6,
             }),
             residual: Some(Residual {
-                noise_a: 0.08,
+                noise_codes: 8.0,
                 margin: 0.1,
                 ticks: 4,
                 jump_a: 1.5,
@@ -153,12 +157,19 @@ impl Monitors {
         }
     }
 
-    /// Validates and builds the detectors for `plant` at the sample period `ts_s` with
-    /// `delay_ticks` of measurement delay.
+    /// Validates and builds the detectors for `plant`, the current converter step
+    /// `current_a_per_code`, the sample period `ts_s` and `delay_ticks` of measurement
+    /// delay.
     ///
     /// # Errors
     /// The first bad parameter, by name.
-    pub fn build(&self, plant: &Plant, ts_s: f32, delay_ticks: u8) -> Result<Config, Error> {
+    pub fn build(
+        &self,
+        plant: &Plant,
+        current_a_per_code: f32,
+        ts_s: f32,
+        delay_ticks: u8,
+    ) -> Result<Config, Error> {
         let envelope = plant.envelope()?;
         config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
         if let Some(t) = &self.thermal {
@@ -170,7 +181,7 @@ impl Monitors {
             config::positive("monitors.stuck.reference_m", s.reference_m)?;
         }
         if let Some(r) = &self.residual {
-            config::positive("monitors.residual.noise_a", r.noise_a)?;
+            config::positive("monitors.residual.noise_codes", r.noise_codes)?;
             config::at_least("monitors.residual.margin", r.margin, 0.0)?;
             config::at_least("monitors.residual.ticks", f32::from(r.ticks), 1.0)?;
             config::positive("monitors.residual.jump_a", r.jump_a)?;
@@ -190,8 +201,13 @@ impl Monitors {
         };
         let r = plant.resistance_ohm;
         let tol = plant.tolerance.resistance;
+        let noise_a = match &self.residual {
+            Some(r) => r.noise_codes * current_a_per_code.abs(),
+            None => 0.0,
+        };
         Ok(Config {
             monitors: *self,
+            noise_a,
             nominal: envelope.nominal(),
             envelope,
             convention: plant.convention,
@@ -210,6 +226,7 @@ impl Monitors {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct Config {
     monitors: Monitors,
+    noise_a: f32,
     envelope: Envelope,
     nominal: crate::model::Nominal,
     convention: crate::model::Convention,
@@ -351,7 +368,7 @@ impl Config {
             d_min = d_min.min(d);
             d_max = d_max.max(d);
         }
-        let widen = r.margin * d_min.abs().max(d_max.abs()) + r.noise_a;
+        let widen = r.margin * d_min.abs().max(d_max.abs()) + self.noise_a;
         let d_meas = inp.i_a - i0;
         let (lo, hi) = (d_min - widen, d_max + widen);
         let big = d_meas > hi + r.jump_a || d_meas < lo - r.jump_a;
@@ -448,7 +465,7 @@ mod tests {
 
     fn cfg(delay: u8) -> Config {
         Monitors::product(12.0)
-            .build(&Plant::paper(), TS, delay)
+            .build(&Plant::paper(), crate::sense::CURRENT_A_PER_CODE, TS, delay)
             .unwrap()
     }
 
@@ -642,11 +659,15 @@ mod tests {
     fn bad_monitor_settings_are_named() {
         let mut m = Monitors::product(12.0);
         m.residual.as_mut().unwrap().gross = 0.5;
-        let e = m.build(&Plant::paper(), TS, 0).unwrap_err();
+        let e = m
+            .build(&Plant::paper(), crate::sense::CURRENT_A_PER_CODE, TS, 0)
+            .unwrap_err();
         assert_eq!(e.param, "monitors.residual.gross");
         let mut m = Monitors::product(12.0);
         m.tracking.as_mut().unwrap().time_s = 0.0;
-        let e = m.build(&Plant::paper(), TS, 0).unwrap_err();
+        let e = m
+            .build(&Plant::paper(), crate::sense::CURRENT_A_PER_CODE, TS, 0)
+            .unwrap_err();
         assert_eq!(e.param, "monitors.tracking.time_s");
     }
 }

@@ -61,9 +61,9 @@ const TICK_GOAL: u32 = 300;
 ///
 /// | case | whole tick | law | monitors | shaping | observer | bridge | sense + limits |
 /// |---|---|---|---|---|---|---|---|
-/// | paper | 581/821/878 | 140 | 305 | 28 (none) | 90 | 96 | 54 + 53 |
-/// | boundary_layer | 595/815/843 | 159 | 305 | 28 (none) | 90 | 96 | 54 + 53 |
-/// | practical | 756/973/1295 | 194 | 342 | 110 (449 when a move starts) | 90 | 96 | 54 + 53 |
+/// | paper | 583/823/880 | 141 | 304 | 28 (none) | 89 | 96 | 53 + 53 |
+/// | boundary_layer | 593/813/841 | 156 | 304 | 28 (none) | 89 | 96 | 53 + 53 |
+/// | practical | 760/977/1299 | 197 | 341 | 110 (449 when a move starts) | 89 | 96 | 53 + 53 |
 ///
 /// The fault monitors (I^2 t, stuck sensor, electrical residual with its least-squares
 /// fit, tracking) are the largest item, then the law; the worst tick is the first of a

@@ -46,6 +46,7 @@
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod compare;
 mod error;
 pub mod hal;
 pub mod lyapunov;
@@ -54,6 +55,8 @@ pub mod montecarlo;
 pub mod plant;
 pub mod scenario;
 pub mod sim;
+pub mod targets;
+pub mod tune;
 
 pub use error::Error;
 pub use metrics::{BoundsCheck, Metrics, Segment};

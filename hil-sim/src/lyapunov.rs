@@ -28,6 +28,16 @@
 //! suggests minimising the ball over `P` (an LMI); for a 2x2 `P` normalised to
 //! `P[0][0] = 1` a direct search over `(p12, p22)` does it without an SDP solver.
 //!
+//! The same construction serves the practical law ([`Problem::practical`]): with the
+//! robust design model its error system is `z' = A(gamma) z + B w` with
+//! `A(gamma) = [[-alpha1, 1], [gamma (alpha1^2 - 1) - alpha1^2, alpha1 - gamma (alpha1 + alpha2)]]`,
+//! where `gamma = (mu / mu_lo) (m_design / m)` is the force gain the loop meets, in
+//! `[gamma_min, gamma_max]`, and `w` collects what the model does not cancel before the
+//! disturbance estimate has (spring, friction and `(gamma - 1) r''`). At `gamma = 1`,
+//! `V = |z|^2 / 2` gives `V' = -alpha1 z1^2 - alpha2 z2^2 + z2 w`: Theorem 1's `Q` is
+//! `diag(-alpha1, -alpha2)`. Any affine family is handled the same way: a Lyapunov
+//! matrix at every vertex of `gamma` is one for the whole interval.
+//!
 //! These radii are Lyapunov bounds, of the order of a metre for the paper's example: they
 //! prove boundedness, they do not predict the micrometre errors the simulator measures.
 
@@ -52,21 +62,15 @@ impl Sym2 {
     }
 }
 
-/// The plant and gains Theorem 1 is about.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// An error system `z' = A z + B w`, `B = (0, 1)`, `|w| <= delta`, with `A` anywhere in
+/// the convex hull of `vertices`.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Problem {
-    /// `alpha1` \[1/s\].
-    pub alpha1: f64,
-    /// `alpha2` \[1/s\].
-    pub alpha2: f64,
-    /// `m` \[kg\].
-    pub mass_kg: f64,
-    /// `K` \[N/m\].
-    pub spring_n_per_m: f64,
-    /// `lambda` \[N s/m\].
-    pub friction_n_s_per_m: f64,
-    /// Largest `mu / mu_lo` over the stroke \[-\].
-    pub theta_max: f64,
+    /// The vertices of `A`, as rows.
+    pub vertices: Vec<[[f64; 2]; 2]>,
+    /// Bound on `|w|` per metre of reference, or per unit of whatever `w` is scaled by
+    /// \[1/s^2\].
+    pub delta: f64,
 }
 
 /// The ultimate bound for one `P`.
@@ -74,29 +78,58 @@ pub struct Problem {
 pub struct Bound {
     /// `P`, normalised to `P[0][0] = 1`.
     pub p: Sym2,
-    /// Radius of the ball that contains the ultimate level set, per metre of reference
-    /// \[m/m\] (multiply by `|y_r|`).
+    /// Radius of the ball that contains the ultimate level set, per unit of `delta`'s scale
+    /// (per metre of reference for [`Problem::paper`]).
     pub radius_per_m: f64,
 }
 
 impl Problem {
-    /// `A(theta)` as rows.
+    /// Theorem 1 of the paper: the paper's law with `theta = mu / mu_lo` in
+    /// `[1, theta_max]`; `w = -(K/m) y_r`, so `delta = K/m` per metre of reference.
     #[must_use]
-    pub fn a(&self, theta: f64) -> [[f64; 2]; 2] {
-        let (a1, m) = (self.alpha1, self.mass_kg);
-        let (k, l) = (self.spring_n_per_m, self.friction_n_s_per_m);
-        [
-            [-a1, 1.0],
+    pub fn paper(
+        alpha1: f64,
+        alpha2: f64,
+        mass_kg: f64,
+        spring_n_per_m: f64,
+        friction_n_s_per_m: f64,
+        theta_max: f64,
+    ) -> Self {
+        let (a1, m) = (alpha1, mass_kg);
+        let (k, l) = (spring_n_per_m, friction_n_s_per_m);
+        let a = |theta: f64| {
             [
-                l * a1 / m - k / m - a1 * a1,
-                a1 - l / m - theta * self.alpha2,
-            ],
-        ]
+                [-a1, 1.0],
+                [l * a1 / m - k / m - a1 * a1, a1 - l / m - theta * alpha2],
+            ]
+        };
+        Self {
+            vertices: vec![a(1.0), a(theta_max)],
+            delta: k / m,
+        }
     }
 
-    /// `M(theta) = -(A' P + P A)`.
-    fn m(&self, p: &Sym2, theta: f64) -> Sym2 {
-        let a = self.a(theta);
+    /// The practical law: the force gain `gamma` in `[gamma_min, gamma_max]` and
+    /// `|w| <= delta` \[m/s^2\].
+    #[must_use]
+    pub fn practical(alpha1: f64, alpha2: f64, gamma_min: f64, gamma_max: f64, delta: f64) -> Self {
+        let a = |g: f64| {
+            [
+                [-alpha1, 1.0],
+                [
+                    g * (alpha1 * alpha1 - 1.0) - alpha1 * alpha1,
+                    alpha1 - g * (alpha1 + alpha2),
+                ],
+            ]
+        };
+        Self {
+            vertices: vec![a(gamma_min), a(gamma_max)],
+            delta,
+        }
+    }
+
+    /// `M = -(A' P + P A)` for one vertex `a`.
+    fn m(p: &Sym2, a: &[[f64; 2]; 2]) -> Sym2 {
         // (P A)[i][j] = sum_k P[i][k] A[k][j]
         let pa = [
             [p.a * a[0][0] + p.b * a[1][0], p.a * a[0][1] + p.b * a[1][1]],
@@ -117,19 +150,19 @@ impl Problem {
         if p_min <= 0.0 {
             return None;
         }
-        let m_min = [1.0, self.theta_max]
+        let m_min = self
+            .vertices
             .iter()
-            .map(|&t| self.m(p, t).eigenvalues().0)
+            .map(|a| Self::m(p, a).eigenvalues().0)
             .fold(f64::INFINITY, f64::min);
         if m_min <= 0.0 {
             return None;
         }
         let pb = (p.b * p.b + p.c * p.c).sqrt();
-        let delta_per_m = self.spring_n_per_m / self.mass_kg;
-        Some((p_max / p_min).sqrt() * 2.0 * pb * delta_per_m / m_min)
+        Some((p_max / p_min).sqrt() * 2.0 * pb * self.delta / m_min)
     }
 
-    /// The paper's bound, `P = I/2` (identical to `P = I`): `delta / alpha`.
+    /// `P = I` (the paper's `V = |z|^2 / 2`): `delta / alpha`.
     #[must_use]
     pub fn identity(&self) -> Option<Bound> {
         let p = Sym2 {
@@ -192,15 +225,8 @@ mod tests {
     use super::*;
 
     fn paper() -> Problem {
-        Problem {
-            alpha1: 10.0,
-            alpha2: 20_000.0,
-            mass_kg: 0.1,
-            spring_n_per_m: 120.0,
-            friction_n_s_per_m: 5.0,
-            // +-20 % surfaces: mu_hi / mu_lo = 1.2 / 0.8.
-            theta_max: 1.5,
-        }
+        // +-20 % surfaces: mu_hi / mu_lo = 1.2 / 0.8.
+        Problem::paper(10.0, 20_000.0, 0.1, 120.0, 5.0, 1.5)
     }
 
     #[test]
@@ -234,11 +260,35 @@ mod tests {
 
     #[test]
     fn gains_that_fail_theorem_one_have_no_bound() {
-        let p = Problem {
-            alpha2: 10.0,
-            ..paper()
-        };
+        let p = Problem::paper(10.0, 10.0, 0.1, 120.0, 5.0, 1.5);
         assert!(p.identity().is_none());
+    }
+
+    /// The practical law's error system at gamma = 1 is Theorem 1 with
+    /// `Q = diag(-alpha1, -alpha2)`: for P = I the bound is delta / min(alpha1, alpha2).
+    #[test]
+    fn practical_law_at_unit_gain_has_the_diagonal_q() {
+        let p = Problem::practical(100.0, 100.0, 1.0, 1.0, 3.0);
+        let b = p.identity().unwrap();
+        assert!(
+            (b.radius_per_m - 3.0 / 100.0).abs() < 1e-9,
+            "{}",
+            b.radius_per_m
+        );
+        // Over the force gains the robust model meets (1 to 1.83) it stays quadratically
+        // stable.
+        assert!(Problem::practical(100.0, 100.0, 1.0, 1.83, 3.0)
+            .optimise()
+            .is_some());
+        // With the spring compensated, even the paper's gains give a negative definite Q;
+        // it is the uncompensated spring that makes the paper's Theorem 1 ask for
+        // alpha2 > 15920.
+        assert!(Problem::practical(10.0, 20.0, 1.0, 1.0, 3.0)
+            .identity()
+            .is_some());
+        assert!(Problem::paper(10.0, 20.0, 0.1, 120.0, 5.0, 1.0)
+            .identity()
+            .is_none());
     }
 
     #[test]

@@ -23,6 +23,7 @@
 //! | [`supervisor`] | limits, latched faults, safe state |
 //! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
 //! | [`control`] | the configuration, the state and the one `tick` |
+//! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
 //!
 //! ## Guarantees
 //!
@@ -91,4 +92,5 @@ pub mod model;
 pub mod observer;
 pub mod sense;
 pub mod supervisor;
+pub mod trace;
 pub mod trajectory;

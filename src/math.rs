@@ -68,6 +68,48 @@ pub fn sat(x: f32, limit: f32) -> f32 {
     }
 }
 
+/// The larger of `a` and `b`; a `NaN` operand is ignored (as `f32::max`).
+///
+/// `f32::max` and `f32::min` are library calls on the Cortex-M4F (`fmaxf`/`fminf`: the
+/// FPU has no `vmaxnm`), about 11 instructions each with the call; this compiles to a
+/// compare and a conditional move. It also fixes the sign of a zero result, which IEEE
+/// `maxNum` leaves open: `max(-0.0, 0.0)` is `0.0` on every target.
+#[inline]
+#[must_use]
+pub fn max(a: f32, b: f32) -> f32 {
+    if a > b || b.is_nan() {
+        a
+    } else {
+        b
+    }
+}
+
+/// The smaller of `a` and `b`; a `NaN` operand is ignored (as `f32::min`). See [`max`].
+#[inline]
+#[must_use]
+pub fn min(a: f32, b: f32) -> f32 {
+    if a < b || b.is_nan() {
+        a
+    } else {
+        b
+    }
+}
+
+/// `x` limited to `[lo, hi]`, for `lo <= hi`. Unlike `f32::clamp` it has no panic path
+/// (`f32::clamp` asserts `lo <= hi` at run time, which the tick cannot afford even when
+/// validation guarantees it); `NaN` stays `NaN`.
+#[inline]
+#[must_use]
+pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}
+
 /// `true` when every value is finite.
 #[inline]
 #[must_use]
@@ -86,6 +128,41 @@ mod tests {
         assert_eq!(sqrt(2.0).to_bits(), 0x3fb5_04f3);
         assert!(sqrt(-1.0).is_nan());
         assert_eq!(sqrt(f32::INFINITY), f32::INFINITY);
+    }
+
+    #[test]
+    fn max_min_clamp_match_core_on_everything_but_the_sign_of_zero() {
+        let v = [
+            f32::NEG_INFINITY,
+            -3.5,
+            -0.0,
+            0.0,
+            1e-40,
+            2.0,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        for a in v {
+            for b in v {
+                let (m, n) = (max(a, b), min(a, b));
+                if a == 0.0 && b == 0.0 {
+                    assert_eq!(m, 0.0);
+                    assert_eq!(m.to_bits(), b.to_bits());
+                } else if a.is_nan() && b.is_nan() {
+                    assert!(m.is_nan() && n.is_nan());
+                } else {
+                    assert_eq!(m.to_bits(), a.max(b).to_bits(), "max({a}, {b})");
+                    assert_eq!(n.to_bits(), a.min(b).to_bits(), "min({a}, {b})");
+                }
+            }
+        }
+        assert_eq!(max(-0.0, 0.0).to_bits(), 0);
+        assert_eq!(clamp(5.0, 0.0, 4.0), 4.0);
+        assert_eq!(clamp(-1.0, 0.0, 4.0), 0.0);
+        assert_eq!(clamp(2.5, 0.0, 4.0), 2.5);
+        assert!(clamp(f32::NAN, 0.0, 4.0).is_nan());
+        // Where f32::clamp would panic, this one returns a bound.
+        assert_eq!(clamp(1.0, 2.0, 0.0), 2.0);
     }
 
     #[test]

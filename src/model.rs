@@ -62,7 +62,7 @@ impl Convention {
             Convention::Paper => x_m,
             Convention::Physical { gap_at_zero_m } => gap_at_zero_m - x_m,
         };
-        g.max(0.0)
+        crate::math::max(g, 0.0)
     }
 
     /// Sign of the motional back-EMF term in `x3' = (u - R x3 + s x2 x3 mu) / L`.
@@ -417,7 +417,7 @@ impl Envelope {
         let at_lo = force_coefficient(self.n2, self.rho_x_lo, self.rho0, g_m);
         let at_hi = force_coefficient(self.n2, self.rho_x_hi, self.rho0, g_m);
         // mu(r) rises for r < rho0/g and falls above it: the minimum is at an end.
-        at_lo.min(at_hi)
+        crate::math::min(at_lo, at_hi)
     }
 
     /// Upper force-coefficient bound `mu_hi(g)` \[H/m\].

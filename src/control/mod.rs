@@ -45,6 +45,7 @@ use embedded_hal::pwm::SetDutyCycle;
 use crate::bridge::{Drive, HBridge};
 use crate::config::{self, Error};
 use crate::law::{self, Law, Reference};
+use crate::math;
 use crate::model::Plant;
 use crate::observer::{self, Estimate};
 use crate::sense::{Calibration, Frame, Measurement};
@@ -267,6 +268,18 @@ impl Config {
         &self.observer
     }
 
+    /// The reference shaping, if any.
+    #[must_use]
+    pub const fn shaping(&self) -> Option<&trajectory::Config> {
+        self.shaping.as_ref()
+    }
+
+    /// The fault detectors.
+    #[must_use]
+    pub const fn monitors(&self) -> &monitor::Config {
+        &self.monitors
+    }
+
     /// A fresh state for this configuration.
     #[must_use]
     pub fn initial_state(&self) -> State {
@@ -366,11 +379,14 @@ impl Config {
             status.fault = Some(state.supervisor.trip(Fault::Setpoint));
             return self.safe(state, bridge, status);
         }
-        let setpoint_m = setpoint_m.clamp(0.0, self.stroke_m);
+        let setpoint_m = math::clamp(setpoint_m, 0.0, self.stroke_m);
         status.reference = match &self.shaping {
             Some(shaping) => {
                 if !state.trajectory.is_primed() {
-                    shaping.start(&mut state.trajectory, m.x_m.clamp(0.0, self.stroke_m));
+                    shaping.start(
+                        &mut state.trajectory,
+                        math::clamp(m.x_m, 0.0, self.stroke_m),
+                    );
                 }
                 shaping.step(&mut state.trajectory, setpoint_m)
             }

@@ -1,0 +1,118 @@
+//! The saved golden traces (`tests/golden/*.emat`) against the current core, on the host.
+//!
+//! A trace is stale when the core no longer computes what it recorded: its settings
+//! identity differs from the case's settings now, or a replay through `Config::tick`
+//! differs in any output bit. Either fails here, before the slower on-target check
+//! (`tests/qemu_golden.rs`) runs. Every reference case must have a trace of at least
+//! `ema::trace::MIN_GOLDEN_TICKS` ticks, and the on-target check must include it.
+
+use core::convert::Infallible;
+use std::path::{Path, PathBuf};
+
+use ema::bridge::HBridge;
+use ema::law;
+use ema::trace::{self, CASES, MIN_GOLDEN_TICKS};
+use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
+use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+
+struct Pwm(u16);
+impl PwmErrorType for Pwm {
+    type Error = Infallible;
+}
+impl SetDutyCycle for Pwm {
+    fn max_duty_cycle(&self) -> u16 {
+        self.0
+    }
+    fn set_duty_cycle(&mut self, _: u16) -> Result<(), Infallible> {
+        Ok(())
+    }
+}
+struct Pin;
+impl PinErrorType for Pin {
+    type Error = Infallible;
+}
+impl OutputPin for Pin {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+}
+
+fn golden(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden")
+        .join(format!("{name}.emat"))
+}
+
+const REGENERATE: &str = "regenerate with `cargo run --release --example golden_generate` \
+                          (temporary generator) once the change is intended";
+
+#[test]
+fn every_case_has_a_current_trace_that_replays_bit_for_bit() {
+    let mut reverse = 0;
+    for case in CASES {
+        let path = golden(case.name);
+        let bytes = std::fs::read(&path)
+            .unwrap_or_else(|e| panic!("{}: {e}; {REGENERATE}", path.display()));
+        let (trace, found, cfg) = trace::open(&bytes)
+            .unwrap_or_else(|e| panic!("{}: {e:?}; {REGENERATE}", path.display()));
+        assert_eq!(found.name, case.name, "{}", path.display());
+        let ticks = trace.header().ticks;
+        assert!(ticks >= MIN_GOLDEN_TICKS, "{}: {ticks} ticks", case.name);
+        let Ok(mut bridge) = HBridge::new(Pwm(trace.header().max_duty), Pin, Pin);
+        match trace::replay(&trace, &cfg, &mut bridge) {
+            Ok(n) => assert_eq!(n, ticks),
+            Err(m) => panic!("{}: stale trace, {m}; {REGENERATE}", case.name),
+        }
+        // Most ticks run the whole path (the paper's law re-arms often, the others hardly),
+        // the bridge drives, and the trace ends in a latched fault.
+        let (mut running, mut fwd) = (0, 0);
+        for r in trace.records() {
+            running += u32::from(r.output.fault == 0);
+            fwd += u32::from(r.output.mode == 1);
+            reverse += u32::from(r.output.mode == 2);
+        }
+        assert!(
+            running >= ticks / 2 && fwd > 100,
+            "{}: {running} running, {fwd} forward",
+            case.name
+        );
+        assert_ne!(trace.records().last().map(|r| r.output.fault), Some(0));
+    }
+    // Some law reverses the bridge (the practical one never needs to).
+    assert!(reverse > 10, "{reverse} reverse ticks in all traces");
+}
+
+#[test]
+fn the_target_check_includes_every_trace() {
+    let src =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/qemu_golden.rs"))
+            .unwrap();
+    for case in CASES {
+        let include = format!("include_bytes!(\"golden/{}.emat\")", case.name);
+        assert!(
+            src.contains(&include),
+            "tests/qemu_golden.rs lacks {include}"
+        );
+    }
+}
+
+/// The name a law variant's reference case must have. Adding a variant to
+/// `law::Settings` breaks this match on purpose: give the new law an entry in
+/// `ema::trace::CASES` (and a trace), then a line here.
+fn case_of(law: &law::Settings) -> &'static str {
+    match law {
+        law::Settings::Paper(_) => "paper",
+        law::Settings::BoundaryLayer(_) => "boundary_layer",
+        law::Settings::Discrete(_) => "practical",
+    }
+}
+
+#[test]
+fn every_law_variant_has_its_case() {
+    for case in CASES {
+        assert_eq!(case_of(&(case.settings)().law), case.name);
+    }
+}

@@ -116,9 +116,9 @@ impl Config {
         let p = &self.plant;
         let i2 = 0.5 * self.settings.current_max_a * self.settings.current_max_a;
         let up = |x: f32| self.envelope.mu_lo(p.gap_m(x)) * i2 - p.spring_n_per_m * x;
-        let x_lo = x0_m.min(x1_m);
+        let x_lo = math::min(x0_m, x1_m);
         let x_mid = 0.5 * (x0_m + x1_m);
-        (up(x_lo).min(up(x_mid)), p.spring_n_per_m * x_mid)
+        (math::min(up(x_lo), up(x_mid)), p.spring_n_per_m * x_mid)
     }
 
     /// Duration \[s\] of a rest-to-rest move over `distance_m` with the force budget
@@ -147,9 +147,10 @@ impl Config {
         let up = x1_m > x0_m;
         let (f_up, f_down) = self.force_budget_n(x0_m, x1_m);
         let t_cfg = math::sqrt(QUINTIC_PEAK_ACCEL * d / self.settings.accel_max_mps2);
-        t_cfg
-            .max(self.duration_for(d, f_up, up))
-            .max(self.duration_for(d, f_down, !up))
+        math::max(
+            math::max(t_cfg, self.duration_for(d, f_up, up)),
+            self.duration_for(d, f_down, !up),
+        )
     }
 
     /// Starts the reference at the first measured position `x_m`, at rest.
@@ -182,9 +183,10 @@ impl Config {
 
     fn plan(&self, state: &mut State, from: Reference, target_m: f32) {
         let d = target_m - from.x_m;
-        let t = self
-            .duration_s(from.x_m, target_m)
-            .max(self.settings.duration_min_s);
+        let t = math::max(
+            self.duration_s(from.x_m, target_m),
+            self.settings.duration_min_s,
+        );
         if !(t.is_finite() && t > self.ts_s) {
             // Too short to shape, or no force available to move (a target at the closed
             // end, where the spring force vanishes): jump and let the feedback do it.

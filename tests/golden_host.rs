@@ -46,8 +46,8 @@ fn golden(name: &str) -> PathBuf {
         .join(format!("{name}.emat"))
 }
 
-const REGENERATE: &str = "regenerate with `cargo run --release --example golden_generate` \
-                          (temporary generator) once the change is intended";
+const REGENERATE: &str = "regenerate with `cargo run -p hil-sim --release -- golden` once the \
+                          change is intended";
 
 #[test]
 fn every_case_has_a_current_trace_that_replays_bit_for_bit() {

@@ -292,6 +292,7 @@ fn main() -> ! {
                 x_m: m.x_m,
                 i_a: m.i_a,
                 r_m: s.reference.x_m,
+                r_v_mps: s.reference.v_mps,
             };
             let t0 = ctr.now();
             let f = monitor(

@@ -49,6 +49,7 @@
 pub mod compare;
 mod error;
 pub mod faults;
+pub mod golden;
 pub mod hal;
 pub mod lyapunov;
 pub mod metrics;

@@ -619,12 +619,13 @@ impl Scenario {
     /// a 150 V ideal supply, a calibration covering 225 V and +-40 A, ideal sensors, the
     /// averaged bridge, a step from `x0 = (1 mm, 0, 0)` to 3 mm at `t = 0`, 1 s (the law
     /// creeps: at 0.6 s the error is still 0.7 %, at 1 s it has reached its 0.49 %), the
-    /// error probed at 0.5 s, trip limits as `Settings::paper` (30 A).
+    /// error probed at 0.5 s, a current trip of 30 A (the law asks for 22 A at start-up).
     #[must_use]
     #[allow(clippy::cast_possible_truncation)]
     pub fn paper(rate_hz: f64) -> Self {
         let mut controller = Settings::paper(rate_hz as f32, PAPER_SUPPLY_V as f32);
         controller.sense = hal::calibration(1.5 * PAPER_SUPPLY_V, 40.0);
+        controller.limits.current_trip_a = 30.0;
         Self {
             name: format!("paper-{rate_hz}hz"),
             duration_s: 1.0,

@@ -100,6 +100,46 @@ impl Run {
 /// # Errors
 /// An invalid scenario, true plant or controller configuration, by name.
 pub fn run(scenario: &Scenario) -> Result<Run, Error> {
+    run_with(scenario, None)
+}
+
+/// What [`run_with`] records for golden traces: every tick's frame, set point and outputs
+/// in the `ema::trace` format; a latched fault is re-armed at the next tick when
+/// `rearm_after_fault` (so that a trace keeps exercising the whole path).
+#[derive(Debug, Default)]
+pub struct Recording {
+    /// Re-arm the controller at the tick after a latched fault.
+    pub rearm_after_fault: bool,
+    /// The records, one per tick.
+    pub records: Vec<ema::trace::Record>,
+}
+
+/// As [`run`], recording every tick into `recording` when given.
+///
+/// # Errors
+/// As [`run`]; recording needs converter codes ([`Sensors::Adc`]) and no missed
+/// deadlines (a trace has one record per tick).
+pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> Result<Run, Error> {
+    if recording.is_some() {
+        if let Sensors::Ideal = scenario.sensors {
+            return Err(Error::param(
+                "sensors",
+                f64::NAN,
+                "a recorded run needs converter codes (sensors.kind = \"adc\")",
+            ));
+        }
+        if scenario
+            .faults
+            .iter()
+            .any(|f| matches!(f.fault, Injected::MissedDeadlines { .. }))
+        {
+            return Err(Error::param(
+                "faults",
+                f64::NAN,
+                "a recorded run has one record per tick: no missed deadlines",
+            ));
+        }
+    }
     scenario.validate()?;
     let config = scenario.controller.build()?;
     let plant = scenario.plant.resolve(&scenario.controller.plant);
@@ -175,7 +215,22 @@ pub fn run(scenario: &Scenario) -> Result<Run, Error> {
                 ),
                 Some(c) => {
                     let frame = c.sample(x_m, i_a, now.vbus_v);
-                    config.tick(&mut ctl, &mut bridge, &frame, r as f32)
+                    match recording.as_deref_mut() {
+                        None => config.tick(&mut ctl, &mut bridge, &frame, r as f32),
+                        Some(rec) => {
+                            let rearm = rec.rearm_after_fault && last.fault.is_some();
+                            let (status, record) = ema::trace::tick_record(
+                                &config,
+                                &mut ctl,
+                                &mut bridge,
+                                &frame,
+                                r as f32,
+                                rearm,
+                            );
+                            rec.records.push(record);
+                            status
+                        }
+                    }
                 }
             }
         };

@@ -202,7 +202,10 @@ impl Law for Config {
         let d = &self.dynamics;
         let f_d =
             d.mass_kg * a_d + d.spring_n_per_m * input.x_m + d.friction_n_s_per_m * input.v_mps;
-        let i_d = math::sqrt((2.0 * f_d / mu).max(0.0)).min(self.gains.current_max_a);
+        let i_d = math::min(
+            math::sqrt(math::max(2.0 * f_d / mu, 0.0)),
+            self.gains.current_max_a,
+        );
 
         // Current loop, (4)-(5).
         let l = self.nominal.inductance_h(g);

@@ -273,7 +273,7 @@ impl Config {
         let l_hi = self.envelope.l_hi(g);
 
         let i_d_sq = -self.two_m_alpha2 * z2 / mu_lo;
-        let i_d = math::sqrt(i_d_sq.max(0.0));
+        let i_d = math::sqrt(math::max(i_d_sq, 0.0));
         let di_d = if state.primed {
             (i_d - state.i_d_prev_a) * self.inv_ts
         } else {

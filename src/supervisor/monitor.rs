@@ -43,6 +43,7 @@
 
 use super::Fault;
 use crate::config::{self, Error};
+use crate::math;
 use crate::model::{Envelope, Plant};
 use crate::sense::Calibration;
 
@@ -394,7 +395,7 @@ impl Config {
     fn thermal(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
         let t = self.monitors.thermal.as_ref()?;
         let excess = inp.i_a * inp.i_a - t.continuous_a * t.continuous_a;
-        st.i2t_a2s = (st.i2t_a2s + excess * self.ts_s).max(0.0);
+        st.i2t_a2s = math::max(st.i2t_a2s + excess * self.ts_s, 0.0);
         (st.i2t_a2s > t.allowance_a2s).then_some(Fault::OverCurrentI2t)
     }
 
@@ -444,13 +445,13 @@ impl Config {
         ];
         let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
         for d in corners {
-            d_min = d_min.min(d);
-            d_max = d_max.max(d);
+            d_min = math::min(d_min, d);
+            d_max = math::max(d_max, d);
         }
         if let Some(f) = self.bank(r, st, inp.i_a, i0, u, l_lo, l_hi) {
             return Some(f);
         }
-        let widen = r.margin * d_min.abs().max(d_max.abs()) + self.noise_a;
+        let widen = r.margin * math::max(d_min.abs(), d_max.abs()) + self.noise_a;
         let d_meas = inp.i_a - i0;
         let (lo, hi) = (d_min - widen, d_max + widen);
         let big = d_meas > hi + r.jump_a || d_meas < lo - r.jump_a;
@@ -478,9 +479,9 @@ impl Config {
             st.above = 0;
             // The least admissible change in the direction the coil is driven.
             let least = if d_min + d_max > 0.0 {
-                d_min.max(0.0)
+                math::max(d_min, 0.0)
             } else {
-                -(d_max.min(0.0))
+                -math::min(d_max, 0.0)
             };
             st.run_meas += d_meas.abs();
             st.run_adm += least;
@@ -545,11 +546,11 @@ impl Config {
         for (c, (l, res)) in st.bank.iter_mut().zip(corners) {
             let k = self.ts_s / l;
             *c += k * (u - res * *c) / (1.0 + 0.5 * res * k);
-            lo = lo.min(*c);
-            hi = hi.max(*c);
-            least = least.min((*c - st.bank_anchor).abs());
+            lo = math::min(lo, *c);
+            hi = math::max(hi, *c);
+            least = math::min(least, (*c - st.bank_anchor).abs());
         }
-        let spread = (hi - st.bank_anchor).abs().max((lo - st.bank_anchor).abs());
+        let spread = math::max((hi - st.bank_anchor).abs(), (lo - st.bank_anchor).abs());
         let widen = r.margin * spread + self.noise_a;
         // Below the bank in the direction the coil is driven: the whole bank moved away
         // from the anchor (all corners on one side) and the reading lags all of them.

@@ -264,6 +264,7 @@ impl Monitors {
         };
         Ok(Config {
             monitors: *self,
+            ts_over_n2: ts_s / plant.magnetics.turns_sq(),
             noise_a,
             confirm_ticks,
             band_m,
@@ -286,6 +287,8 @@ impl Monitors {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct Config {
     monitors: Monitors,
+    /// `Ts / N^2`, so that `Ts / L(g) = rho(g) Ts / N^2` needs no division.
+    ts_over_n2: f32,
     noise_a: f32,
     confirm_ticks: u16,
     band_m: f32,
@@ -432,23 +435,26 @@ impl Config {
         }
         let g = self.convention.gap_m(inp.x_m);
         let i0 = st.i_prev;
-        let step = |l: f32, res: f32| {
-            let k = self.ts_s / l;
-            k * (u - res * i0) / (1.0 + 0.5 * res * k)
-        };
-        let (l_lo, l_hi) = (self.envelope.l_lo(g), self.envelope.l_hi(g));
+        // The four corner coils (L_lo or L_hi, R_lo or R_hi): gain and resistance of
+        // `di = k (u - R i) / (1 + R k / 2)`, with `k = Ts / L = Ts rho(g) / N^2`.
+        let (k_lo, k_hi) = (
+            self.ts_over_n2 * self.envelope.rho_hi(g),
+            self.ts_over_n2 * self.envelope.rho_lo(g),
+        );
+        let gain = |k: f32, res: f32| k / (1.0 + 0.5 * res * k);
         let corners = [
-            step(l_lo, self.r_lo),
-            step(l_lo, self.r_hi),
-            step(l_hi, self.r_lo),
-            step(l_hi, self.r_hi),
+            (gain(k_lo, self.r_lo), self.r_lo),
+            (gain(k_lo, self.r_hi), self.r_hi),
+            (gain(k_hi, self.r_lo), self.r_lo),
+            (gain(k_hi, self.r_hi), self.r_hi),
         ];
         let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
-        for d in corners {
+        for (f, res) in corners {
+            let d = f * (u - res * i0);
             d_min = math::min(d_min, d);
             d_max = math::max(d_max, d);
         }
-        if let Some(f) = self.bank(r, st, inp.i_a, i0, u, l_lo, l_hi) {
+        if let Some(f) = self.bank(r, st, inp.i_a, i0, u, &corners) {
             return Some(f);
         }
         let widen = r.margin * math::max(d_min.abs(), d_max.abs()) + self.noise_a;
@@ -517,7 +523,6 @@ impl Config {
 
     /// The corner bank (see the module documentation): advances the four corner coils by
     /// one period under `u` and compares the reading with their envelope.
-    #[allow(clippy::too_many_arguments)]
     fn bank(
         &self,
         r: &Residual,
@@ -525,8 +530,7 @@ impl Config {
         i_a: f32,
         i0: f32,
         u: f32,
-        l_lo: f32,
-        l_hi: f32,
+        corners: &[(f32, f32); 4],
     ) -> Option<Fault> {
         if st.bank_ticks == 0 || st.bank_ticks >= r.window {
             st.bank = [i0; 4];
@@ -535,17 +539,10 @@ impl Config {
             st.bank_below = 0;
         }
         st.bank_ticks = st.bank_ticks.saturating_add(1);
-        let corners = [
-            (l_lo, self.r_lo),
-            (l_lo, self.r_hi),
-            (l_hi, self.r_lo),
-            (l_hi, self.r_hi),
-        ];
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         let mut least = f32::INFINITY;
-        for (c, (l, res)) in st.bank.iter_mut().zip(corners) {
-            let k = self.ts_s / l;
-            *c += k * (u - res * *c) / (1.0 + 0.5 * res * k);
+        for (c, &(f, res)) in st.bank.iter_mut().zip(corners) {
+            *c += f * (u - res * *c);
             lo = math::min(lo, *c);
             hi = math::max(hi, *c);
             least = math::min(least, (*c - st.bank_anchor).abs());

@@ -52,6 +52,7 @@ pub mod lyapunov;
 pub mod metrics;
 pub mod montecarlo;
 pub mod plant;
+pub mod report;
 pub mod scenario;
 pub mod sim;
 

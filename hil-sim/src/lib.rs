@@ -46,6 +46,9 @@
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod accuracy;
+pub mod catalog;
+pub mod cli;
 mod error;
 pub mod hal;
 pub mod lyapunov;

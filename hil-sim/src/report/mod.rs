@@ -27,12 +27,13 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+pub mod figures;
 pub mod plot;
 mod table;
 pub mod trace;
 
 pub use plot::{Figure, Panel, Series};
-pub use table::{metrics_table, Table};
+pub use table::{metrics_table, Table, METRICS_COLUMNS};
 
 use std::path::Path;
 
@@ -45,8 +46,9 @@ pub fn create_dir(dir: &Path) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("cannot create the folder {}: {e}", dir.display()))
 }
 
-/// `v` with `digits` significant digits, without a trailing exponent for ordinary
-/// magnitudes (`0.4347`, `22.42`, `-14.78`, `1.2e-6`); `-` for NaN.
+/// `v` rounded to `digits` significant digits, trailing zeros dropped, without an
+/// exponent for ordinary magnitudes (`0.4347`, `22.42`, `-14.78`, `150`, `1.2e-6`); `-` for
+/// NaN.
 #[must_use]
 pub fn sig(v: f64, digits: usize) -> String {
     if v.is_nan() {
@@ -65,7 +67,12 @@ pub fn sig(v: f64, digits: usize) -> String {
     // Decimals so that `digits` significant digits show; at least 0.
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let decimals = (digits as f64 - 1.0 - mag).max(0.0) as usize;
-    format!("{v:.decimals$}")
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    }
 }
 
 #[cfg(test)]
@@ -82,5 +89,7 @@ mod tests {
         assert_eq!(sig(0.0, 3), "0");
         assert_eq!(sig(f64::NAN, 3), "-");
         assert_eq!(sig(37.658, 3), "37.7");
+        assert_eq!(sig(150.0, 4), "150");
+        assert_eq!(sig(0.650_43, 3), "0.65");
     }
 }

@@ -338,22 +338,37 @@ fn draw_panel<DB: DrawingBackend>(
         .bold_line_style(RGBColor(215, 215, 215))
         .draw()
         .map_err(|e| e.to_string())?;
+    let (xr, yr) = (x0.min(x1)..=x0.max(x1), y0.min(y1)..=y0.max(y1));
+    let inside = |p: &(f64, f64)| xr.contains(&p.0) && yr.contains(&p.1);
     for (k, s) in panel.series.iter().enumerate() {
         let color = PALETTE[s.color.unwrap_or(k) % PALETTE.len()];
-        let clip = |p: &(f64, f64)| p.0.is_finite() && p.1.is_finite();
-        let pts = s.points.iter().copied().filter(clip);
+        // plotters does not clip to the plotting area: lines keep only their runs of
+        // points inside it, bands are clamped to it. Dense lines are drawn 1 px wide: the
+        // miter joins of a thick zigzag spike far out of the chart.
+        let width = if s.points.len() > DENSE_POINTS { 1 } else { 2 };
+        let runs = runs(&s.points, &inside);
         let anno = match &s.kind {
-            Kind::Line => chart.draw_series(LineSeries::new(pts, color.stroke_width(2))),
-            Kind::Dashed => {
-                chart.draw_series(DashedLineSeries::new(pts, 8, 6, color.stroke_width(2)))
-            }
+            Kind::Line => chart.draw_series(
+                runs.into_iter()
+                    .map(|r| PathElement::new(r, color.stroke_width(width))),
+            ),
+            Kind::Dashed => chart.draw_series(
+                runs.into_iter()
+                    .flat_map(|r| DashedLineSeries::new(r, 8, 6, color.stroke_width(2))),
+            ),
             Kind::Band { lower } => {
                 let outline: Vec<(f64, f64)> = s
                     .points
                     .iter()
                     .copied()
                     .chain(lower.iter().rev().copied())
-                    .filter(clip)
+                    .filter(|p| p.0.is_finite() && p.1.is_finite())
+                    .map(|(x, y)| {
+                        (
+                            x.clamp(*xr.start(), *xr.end()),
+                            y.clamp(*yr.start(), *yr.end()),
+                        )
+                    })
                     .collect();
                 chart.draw_series(std::iter::once(Polygon::new(
                     outline,
@@ -394,9 +409,30 @@ fn draw_panel<DB: DrawingBackend>(
     Ok(())
 }
 
+/// Above this many points a line is drawn 1 px wide.
+const DENSE_POINTS: usize = 500;
+
+/// The maximal runs of consecutive points that satisfy `keep`.
+fn runs(points: &[(f64, f64)], keep: &dyn Fn(&(f64, f64)) -> bool) -> Vec<Vec<(f64, f64)>> {
+    let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut current = Vec::new();
+    for p in points {
+        if keep(p) {
+            current.push(*p);
+        } else if !current.is_empty() {
+            out.push(std::mem::take(&mut current));
+        }
+    }
+    if !current.is_empty() {
+        out.push(current);
+    }
+    out
+}
+
 /// A tick label: short, without float noise (`0.25`, `-14`, `1e-6`).
 fn tick(v: f64) -> String {
-    if v == 0.0 {
+    // Range arithmetic leaves float noise where a tick should read 0.
+    if v.abs() < 1e-12 {
         return "0".into();
     }
     let a = v.abs();
@@ -424,6 +460,7 @@ mod tests {
         assert_eq!(tick(0.30000000000000004), "0.3");
         assert_eq!(tick(1e-6), "1e-6");
         assert_eq!(tick(0.0), "0");
+        assert_eq!(tick(-2.2e-16), "0");
     }
 
     #[test]

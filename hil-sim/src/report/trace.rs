@@ -27,6 +27,8 @@ pub struct Row {
     pub i_min_a: f64,
     /// Largest current at the samples of the bucket \[A\].
     pub i_max_a: f64,
+    /// Mean current at the samples of the bucket \[A\].
+    pub i_avg_a: f64,
     /// Largest `|i|` over the bucket, between samples too \[A\].
     pub i_abs_peak_a: f64,
     /// Law's voltage command before saturation \[V\].
@@ -37,6 +39,8 @@ pub struct Row {
     pub u_min_v: f64,
     /// Largest period-mean coil voltage over the bucket \[V\].
     pub u_max_v: f64,
+    /// Mean coil voltage over the bucket \[V\].
+    pub u_avg_v: f64,
     /// Law's desired current \[A\].
     pub i_d_a: f64,
     /// Observer's position estimate \[m\].
@@ -54,7 +58,7 @@ pub struct Row {
 }
 
 /// The CSV header of a decimated trace, in column order.
-pub const COLUMNS: [&str; 19] = [
+pub const COLUMNS: [&str; 21] = [
     "t_s",
     "r_m",
     "x_m",
@@ -62,11 +66,13 @@ pub const COLUMNS: [&str; 19] = [
     "i_a",
     "i_min_a",
     "i_max_a",
+    "i_avg_a",
     "i_abs_peak_a",
     "u_cmd_v",
     "u_mean_v",
     "u_min_v",
     "u_max_v",
+    "u_avg_v",
     "i_d_a",
     "x_est_m",
     "v_est_mps",
@@ -91,13 +97,18 @@ pub fn decimate(trace: &[Sample], every: usize) -> Vec<Row> {
             let s = bucket.first()?;
             let (mut i_min, mut i_max, mut i_peak) = (s.i_a, s.i_a, 0.0_f64);
             let (mut u_min, mut u_max) = (s.u_mean_v, s.u_mean_v);
+            let (mut i_sum, mut u_sum) = (0.0, 0.0);
             for b in bucket {
+                i_sum += b.i_a;
+                u_sum += b.u_mean_v;
                 i_min = i_min.min(b.i_a);
                 i_max = i_max.max(b.i_a);
                 i_peak = i_peak.max(b.i_abs_max_a);
                 u_min = u_min.min(b.u_mean_v);
                 u_max = u_max.max(b.u_mean_v);
             }
+            #[allow(clippy::cast_precision_loss)]
+            let n = bucket.len() as f64;
             Some(Row {
                 t_s: s.t_s,
                 r_m: s.r_m,
@@ -106,11 +117,13 @@ pub fn decimate(trace: &[Sample], every: usize) -> Vec<Row> {
                 i_a: s.i_a,
                 i_min_a: i_min,
                 i_max_a: i_max,
+                i_avg_a: i_sum / n,
                 i_abs_peak_a: i_peak,
                 u_cmd_v: s.u_cmd_v,
                 u_mean_v: s.u_mean_v,
                 u_min_v: u_min,
                 u_max_v: u_max,
+                u_avg_v: u_sum / n,
                 i_d_a: s.i_d_a,
                 x_est_m: s.x_est_m,
                 v_est_mps: s.v_est_mps,
@@ -169,6 +182,7 @@ mod tests {
         assert_eq!((rows[1].i_min_a, rows[1].i_max_a), (-3.0, 5.0));
         assert_eq!(rows[1].i_abs_peak_a, 9.0);
         assert_eq!((rows[1].u_min_v, rows[1].u_max_v), (4.0, 7.0));
+        assert_eq!((rows[1].i_avg_a, rows[1].u_avg_v), (1.0, 5.5));
         assert_eq!((rows[2].u_min_v, rows[2].u_max_v), (8.0, 9.0));
         assert_eq!(rows[0].mode, "coast");
         assert_eq!(every_for(1_000_000, 20_000), 50);

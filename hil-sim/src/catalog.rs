@@ -163,7 +163,7 @@ pub fn parse(text: &str, origin: &str) -> Result<Scenario, LoadError> {
 fn parse_named(text: &str, origin: &str, default_name: &str) -> Result<Scenario, LoadError> {
     let mut sc: Scenario = toml::from_str(text).map_err(|e| LoadError::Toml {
         origin: origin.to_owned(),
-        message: e.to_string(),
+        message: with_field(text, &e),
     })?;
     if sc.name.is_empty() {
         default_name.clone_into(&mut sc.name);
@@ -173,6 +173,52 @@ fn parse_named(text: &str, origin: &str, default_name: &str) -> Result<Scenario,
         error,
     })?;
     Ok(sc)
+}
+
+/// toml's message, plus the offending line when toml could only point at its table (a
+/// wrong type inside a tagged section such as `[plant]` is reported at the table's
+/// header): the first line of that table whose value is the one refused.
+fn with_field(text: &str, e: &toml::de::Error) -> String {
+    let message = e.to_string();
+    let Some(found) = e
+        .message()
+        .strip_prefix("invalid type: ")
+        .and_then(|m| m.split_once(", expected"))
+        .map(|(found, _)| found)
+    else {
+        return message;
+    };
+    // `string "heavy"`, `integer `5``, `floating point `1.5``, `boolean `true``.
+    let value = found
+        .split_once(' ')
+        .map_or(found, |(_, v)| v)
+        .trim_start_matches("point ")
+        .trim_matches('`');
+    // 1-based line of the span's start.
+    let start = e.span().map_or(0, |span| {
+        text.get(..span.start)
+            .map_or(0, |t| t.matches('\n').count() + 1)
+    });
+    let hit = text
+        .lines()
+        .enumerate()
+        .skip(start.saturating_sub(1))
+        .take_while(|(k, l)| *k + 1 == start || !l.trim_start().starts_with('['))
+        .find(|(_, l)| {
+            l.split_once('=')
+                .is_some_and(|(_, v)| v.split('#').next().is_some_and(|v| v.trim() == value))
+        });
+    match hit {
+        Some((k, line)) if k + 1 != start => {
+            format!(
+                "{}\nthe value is at line {}: {}",
+                message.trim_end(),
+                k + 1,
+                line.trim()
+            )
+        }
+        _ => message,
+    }
 }
 
 /// Everything that can be checked without running: the supply against the controller's

@@ -55,8 +55,8 @@ pub enum Command {
 /// Where a subcommand writes its files.
 #[derive(Clone, Debug, Default, PartialEq, Eq, clap::Args)]
 pub struct Output {
-    /// Folder for the files written [default: out/<scenario-name> in the current
-    /// directory].
+    /// Folder for the files written [default: out/NAME in the current directory, NAME
+    /// being the scenario's name].
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 }

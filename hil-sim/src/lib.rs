@@ -46,6 +46,9 @@
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod accuracy;
+pub mod catalog;
+pub mod cli;
 pub mod compare;
 mod error;
 pub mod faults;
@@ -55,6 +58,7 @@ pub mod lyapunov;
 pub mod metrics;
 pub mod montecarlo;
 pub mod plant;
+pub mod report;
 pub mod scenario;
 pub mod sim;
 pub mod targets;

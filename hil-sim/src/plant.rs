@@ -139,10 +139,11 @@ pub enum ForceModel {
 }
 
 /// What the position coordinate means (see the module documentation).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Convention {
     /// As printed: `x` is the airgap, the force acts along `+x` (opens the gap).
+    #[default]
     Paper,
     /// `x` is the stroke, the airgap is `gap_at_zero_m - x`, the force closes the gap.
     Physical {
@@ -263,9 +264,11 @@ pub struct Params {
     pub rho0_per_h: f64,
     /// The airgaps in series, one surface model each.
     pub gaps: Vec<Surface>,
-    /// Force model.
+    /// Force model (`frozen` when left out of a file).
+    #[serde(default)]
     pub force: ForceModel,
-    /// Position convention.
+    /// Position convention (`paper` when left out of a file).
+    #[serde(default)]
     pub convention: Convention,
     /// Stroke: end stops at `0` and `stroke_m` \[m\].
     pub stroke_m: f64,

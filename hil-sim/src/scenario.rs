@@ -120,6 +120,18 @@ impl Reference {
         }
     }
 
+    /// The reference's value before it first moves \[m\]: `from_m` of a step, ramp or
+    /// smooth move, `initial_m` of a sequence.
+    #[must_use]
+    pub fn start_m(&self) -> f64 {
+        match self {
+            Reference::Step { from_m, .. }
+            | Reference::Ramp { from_m, .. }
+            | Reference::Smooth { from_m, .. } => *from_m,
+            Reference::Sequence { initial_m, .. } => *initial_m,
+        }
+    }
+
     /// The segments of a run of `duration_s`.
     #[must_use]
     pub fn segments(&self, duration_s: f64) -> Vec<SegmentSpec> {
@@ -234,9 +246,10 @@ pub struct Initial {
     pub i_a: f64,
 }
 
-/// The uncertainty set plants are drawn from (all draws uniform).
+/// The uncertainty set plants are drawn from (all draws uniform). A field left out of a
+/// scenario file takes its value from [`Uncertainty::default`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct Uncertainty {
     /// Relative spread of the coil resistance (`0.2` = +-20 %) \[-\].
     pub resistance_rel: f64,
@@ -492,11 +505,12 @@ impl TruePlant {
 }
 
 /// How the sampled measurement reaches the tick.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Sensors {
     /// Exact values at the sample instant, rounded to `f32`, through
-    /// `Config::tick_measured` (no converter, no delay).
+    /// `Config::tick_measured` (no converter, no delay). The default in scenario files.
+    #[default]
     Ideal,
     /// Raw codes from the converter model through `Config::tick`.
     Adc(Adc),
@@ -515,9 +529,9 @@ pub enum BridgeMode {
     Switching,
 }
 
-/// The power stage.
+/// The power stage. Every field has a default in scenario files ([`Bridge::default`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct Bridge {
     /// Averaged or switching-level.
     pub mode: BridgeMode,
@@ -569,8 +583,24 @@ impl Integration {
 }
 
 /// A complete scenario.
+///
+/// Deserialised (from a scenario file) with defaults for the sections that have a natural
+/// one; serialised in full:
+///
+/// | field | when left out |
+/// |---|---|
+/// | `name` | empty (the loader in [`crate::catalog`] uses the file's name) |
+/// | `initial` | at rest, no current, at the reference's starting value ([`Reference::start_m`]) |
+/// | `plant` | the controller's nominal plant, frozen fringing (`kind = "nominal"`) |
+/// | `sensors` | ideal (`kind = "ideal"`) |
+/// | `bridge` | [`Bridge::default`]: averaged, 4200 counts, 0.7 V diodes (each field alone too) |
+/// | `integration` | [`Integration::for_rate`] of `controller.rate_hz` |
+/// | `probes_s` | none |
+/// | `steady_window_s` | 0.05 s |
+///
+/// `duration_s`, `supply`, `reference` and `controller` are required.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "File")]
 pub struct Scenario {
     /// Free-form name.
     #[serde(default)]
@@ -607,6 +637,68 @@ pub struct Scenario {
 
 fn default_window() -> f64 {
     0.05
+}
+
+/// A scenario as a file states it: [`Scenario`] with the optional sections optional.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    #[serde(default)]
+    name: String,
+    duration_s: f64,
+    supply: Supply,
+    reference: Reference,
+    #[serde(default)]
+    initial: Option<Initial>,
+    #[serde(default = "nominal_plant")]
+    plant: TruePlant,
+    controller: Settings,
+    #[serde(default)]
+    sensors: Sensors,
+    #[serde(default)]
+    bridge: Bridge,
+    #[serde(default)]
+    integration: Option<Integration>,
+    #[serde(default)]
+    probes_s: Vec<f64>,
+    #[serde(default = "default_window")]
+    steady_window_s: f64,
+    #[serde(default)]
+    faults: Vec<Injection>,
+}
+
+fn nominal_plant() -> TruePlant {
+    TruePlant::Nominal {
+        force: ForceModel::default(),
+    }
+}
+
+impl From<File> for Scenario {
+    fn from(f: File) -> Self {
+        let initial = f.initial.unwrap_or(Initial {
+            x_m: f.reference.start_m(),
+            v_mps: 0.0,
+            i_a: 0.0,
+        });
+        let integration = f
+            .integration
+            .unwrap_or_else(|| Integration::for_rate(f64::from(f.controller.rate_hz)));
+        Self {
+            name: f.name,
+            duration_s: f.duration_s,
+            supply: f.supply,
+            reference: f.reference,
+            initial,
+            plant: f.plant,
+            controller: f.controller,
+            sensors: f.sensors,
+            bridge: f.bridge,
+            integration,
+            probes_s: f.probes_s,
+            steady_window_s: f.steady_window_s,
+            faults: f.faults,
+        }
+    }
 }
 
 /// Supply voltage of the paper's example \[V\].

@@ -1,0 +1,289 @@
+//! `hil-sim montecarlo <scenario> --n N --seed S`: the scenario over `N` plants drawn from
+//! the uncertainty set (the scenario's own when its plant is `kind = "drawn"`, else the
+//! default set), in parallel with a progress bar ([`crate::montecarlo()`]); prints the
+//! worst case of each metric and writes every draw (plant parameters and metrics) as CSV.
+//!
+//! RK4 substeps: unless `--substeps` is given, the fewest per period (at most the
+//! scenario's own) whose open-loop replay of draw 0 stays within 1e-4 of a 1 us RK4
+//! solution ([`crate::accuracy::fewest_substeps`]); one per period for the product's law
+//! at 20 kHz, against 10 in the scenario files.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use crate::accuracy::{self, TOLERANCE_REL};
+use crate::montecarlo::{draw_seed, montecarlo_with};
+use crate::plant::{ForceModel, Surface};
+use crate::report::{self, sig, Table, METRICS_COLUMNS};
+use crate::scenario::{TruePlant, Uncertainty};
+use crate::{catalog, Draw, Segment};
+
+/// Arguments of `montecarlo`.
+#[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
+pub struct Args {
+    /// An embedded scenario's name (see `hil-sim scenarios`) or a TOML file.
+    pub scenario: String,
+    /// Number of plants drawn.
+    #[arg(long, default_value_t = 100)]
+    pub n: usize,
+    /// Seed of the draws (draw k uses a seed derived from it and k).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// RK4 substeps per ISR period [default: the fewest validated on draw 0].
+    #[arg(long)]
+    pub substeps: Option<u32>,
+    /// Hide the progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Output folder.
+    #[command(flatten)]
+    pub output: super::Output,
+}
+
+/// What `montecarlo` measured and wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// RK4 substeps per period used.
+    pub substeps: u32,
+    /// The draws, in draw order.
+    pub draws: Vec<Draw>,
+    /// Worst case of each metric.
+    pub worst: Table,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Worst value of `f` over every segment of every draw (largest, NaN skipped), with the
+/// draw and segment where it occurs.
+fn worst(draws: &[Draw], f: impl Fn(&Segment) -> f64) -> Option<(f64, usize, usize)> {
+    let mut best: Option<(f64, usize, usize)> = None;
+    for d in draws {
+        for (k, s) in d.metrics.segments.iter().enumerate() {
+            let v = f(s);
+            if !v.is_nan() && best.is_none_or(|b| v > b.0) {
+                best = Some((v, d.index, k));
+            }
+        }
+    }
+    best
+}
+
+/// The worst-case table.
+#[must_use]
+pub fn worst_table(draws: &[Draw]) -> Table {
+    let mut t = Table::new(["metric", "worst", "draw", "segment"]);
+    let mut row = |name: &str, w: Option<(f64, usize, usize)>, digits: usize| {
+        let (v, d, s) = w.map_or(("-".into(), "-".into(), "-".into()), |(v, d, s)| {
+            (sig(v, digits), d.to_string(), s.to_string())
+        });
+        t.push([name.to_owned(), v, d, s]);
+    };
+    let unsettled = draws
+        .iter()
+        .flat_map(|d| d.metrics.segments.iter().map(move |s| (d.index, s)))
+        .filter(|(_, s)| s.settling_time_s.is_none())
+        .map(|(d, _)| d)
+        .collect::<Vec<_>>();
+    row(
+        "settling 2 % [s]",
+        worst(draws, |s| s.settling_time_s.unwrap_or(f64::NAN)),
+        4,
+    );
+    row("overshoot [%]", worst(draws, |s| s.overshoot_pct), 3);
+    row(
+        "|steady error| [um]",
+        worst(draws, |s| s.steady_error_um.abs()),
+        4,
+    );
+    row(
+        "|steady error| [%]",
+        worst(draws, |s| s.steady_error_pct.abs()),
+        3,
+    );
+    row("ripple p-p [A]", worst(draws, |s| s.ripple_pp_a), 3);
+    row("ripple rms [A]", worst(draws, |s| s.ripple_rms_a), 3);
+    row("peak current [A]", worst(draws, |s| s.i_peak_a), 4);
+    row("peak |u| [V]", worst(draws, |s| s.u_peak_v), 4);
+    row("peak |u command| [V]", worst(draws, |s| s.u_cmd_peak_v), 4);
+    #[allow(clippy::cast_precision_loss)]
+    row(
+        "saturated samples",
+        worst(draws, |s| s.saturated_samples as f64),
+        6,
+    );
+    row(
+        "landing speed [m/s]",
+        worst(draws, |s| s.landing_speed_mps.unwrap_or(f64::NAN)),
+        3,
+    );
+    let faulted: Vec<usize> = draws
+        .iter()
+        .filter(|d| d.metrics.first_fault.is_some())
+        .map(|d| d.index)
+        .collect();
+    let outside: Vec<usize> = draws
+        .iter()
+        .filter(|d| !d.metrics.bounds.brackets)
+        .map(|d| d.index)
+        .collect();
+    for (name, list) in [
+        ("segments not settled", unsettled),
+        ("draws with a fault", faulted),
+        ("plants outside the controller's bounds", outside),
+    ] {
+        t.push([
+            name.to_owned(),
+            list.len().to_string(),
+            list.first().map_or_else(|| "-".into(), ToString::to_string),
+            "-".into(),
+        ]);
+    }
+    t
+}
+
+/// Every draw: one row per draw and segment, plant parameters then metrics.
+#[must_use]
+pub fn draws_table(draws: &[Draw]) -> Table {
+    let gaps = draws.iter().map(|d| d.plant.gaps.len()).max().unwrap_or(0);
+    let mut header: Vec<String> = [
+        "draw",
+        "seed",
+        "mass_kg",
+        "spring_n_per_m",
+        "friction_n_s_per_m",
+        "resistance_ohm",
+        "force",
+    ]
+    .map(String::from)
+    .to_vec();
+    for k in 0..gaps {
+        header.push(format!("gap{k}_kind"));
+        header.push(format!("gap{k}_s_at_min_gap_m2"));
+        header.push(format!("gap{k}_s_at_max_gap_m2"));
+    }
+    header.extend(["mu_over_mu_lo_min", "brackets", "first_fault"].map(String::from));
+    header.extend(METRICS_COLUMNS.iter().skip(1).map(|s| (*s).to_owned()));
+    let mut t = Table::new(header);
+    for d in draws {
+        let p = &d.plant;
+        let mut plant = vec![
+            d.index.to_string(),
+            d.seed.to_string(),
+            p.mass_kg.to_string(),
+            p.spring_n_per_m.to_string(),
+            p.friction_n_s_per_m.to_string(),
+            p.resistance_ohm.to_string(),
+            match p.force {
+                ForceModel::Frozen => "frozen",
+                ForceModel::EnergyConsistent => "energy_consistent",
+            }
+            .into(),
+        ];
+        let (g0, g1) = p.gap_range_m();
+        for k in 0..gaps {
+            match p.gaps.get(k) {
+                Some(s) => {
+                    plant.push(
+                        match s {
+                            Surface::Constant { .. } => "constant",
+                            Surface::Rectangular { .. } => "rectangular",
+                        }
+                        .into(),
+                    );
+                    plant.push(s.area_m2(g0).to_string());
+                    plant.push(s.area_m2(g1).to_string());
+                }
+                None => plant.extend([String::new(), String::new(), String::new()]),
+            }
+        }
+        let m = &d.metrics;
+        plant.push(m.bounds.mu_lo_ratio_min.to_string());
+        plant.push(m.bounds.brackets.to_string());
+        plant.push(
+            m.first_fault
+                .and_then(|f| f.fault)
+                .map_or("", ema::supervisor::Fault::name)
+                .into(),
+        );
+        let seg = report::metrics_table(&[("", m)]);
+        for row in seg.rows {
+            let mut r = plant.clone();
+            r.extend(row.into_iter().skip(1));
+            t.rows.push(r);
+        }
+    }
+    t
+}
+
+/// Runs the Monte Carlo and writes its report.
+///
+/// # Errors
+/// A scenario that cannot be loaded (nothing is written then), a failed draw or write.
+pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
+    anyhow::ensure!(args.n > 0, "--n = 0: draw at least one plant");
+    let mut sc = catalog::load(&args.scenario)?;
+    let dir = args.output.dir(&format!("{}-montecarlo", sc.name));
+    let uncertainty = match &sc.plant {
+        TruePlant::Drawn { uncertainty, .. } => *uncertainty,
+        _ => Uncertainty::default(),
+    };
+    let substeps = if let Some(n) = args.substeps {
+        anyhow::ensure!(n > 0, "--substeps = 0: at least one RK4 step per period");
+        writeln!(out, "RK4 substeps per period: {n} (--substeps)")?;
+        n
+    } else {
+        let first = sc.clone().with_plant(TruePlant::Drawn {
+            seed: draw_seed(args.seed, 0),
+            uncertainty,
+        });
+        let a = accuracy::fewest_substeps(&first, sc.integration.substeps, TOLERANCE_REL)?;
+        writeln!(
+            out,
+            "RK4 substeps per period: {} (the scenario has {}; draw 0 replayed with {} stays \
+             within {} of the stroke and {} of the peak current of a 1 us RK4 solution, \
+             tolerance {})",
+            a.substeps,
+            sc.integration.substeps,
+            a.substeps,
+            sig(a.position_rel, 2),
+            sig(a.current_rel, 2),
+            sig(TOLERANCE_REL, 1)
+        )?;
+        a.substeps
+    };
+    sc.integration.substeps = substeps;
+    writeln!(
+        out,
+        "scenario `{}`: {}; {} plants, seed {}",
+        sc.name,
+        super::run::describe(&sc),
+        args.n,
+        args.seed
+    )?;
+    let started = std::time::Instant::now();
+    let draws = montecarlo_with(&sc, args.n, args.seed, !args.quiet)?;
+    writeln!(
+        out,
+        "{} draws in {} s",
+        draws.len(),
+        sig(started.elapsed().as_secs_f64(), 3)
+    )?;
+    let worst = worst_table(&draws);
+    write!(out, "\nworst case over the draws:\n{}", worst.to_text())?;
+
+    report::create_dir(&dir)?;
+    let mut files = Vec::new();
+    let path = dir.join("draws.csv");
+    draws_table(&draws).write_csv(&path)?;
+    files.push(path);
+    let path = dir.join("worst.csv");
+    worst.write_csv(&path)?;
+    files.push(path);
+    super::list_files(out, &files)?;
+    Ok(Outcome {
+        substeps,
+        draws,
+        worst,
+        files,
+    })
+}

@@ -81,8 +81,11 @@ impl Outcome {
 #[must_use]
 pub fn cases(rate_hz: f64, supply_v: f64) -> Vec<Case> {
     let base = || Scenario::product(rate_hz, supply_v).with_duration_s(0.3);
-    // Fastest point of the sequence's 0.5 -> 3.5 mm move (planned at 0.3 s for 0.11 s).
-    let moving = 0.355;
+    // Fastest point of the sequence's 0.5 -> 3.5 mm move, which starts at 0.3 s: the middle
+    // of the planned quintic (about 0.1 s long).
+    let moving = ((0.3 + 0.5 * planned_move_s(rate_hz, supply_v, 0.5e-3, 3.5e-3)) * rate_hz)
+        .round()
+        / rate_hz;
     // One tick into the start-up current ramp (half of the rise still to come).
     let ramping = 1.0 / rate_hz;
     let holding = 0.2;
@@ -199,6 +202,22 @@ pub fn cases(rate_hz: f64, supply_v: f64) -> Vec<Case> {
         expected: Fault::ModelBounds,
     });
     out
+}
+
+/// Duration \[s\] of the move the product's planner makes from `x0_m` to `x1_m` (0.1 s
+/// when the settings have no shaping).
+#[allow(clippy::cast_possible_truncation)]
+fn planned_move_s(rate_hz: f64, supply_v: f64, x0_m: f32, x1_m: f32) -> f64 {
+    let settings = Scenario::product(rate_hz, supply_v).controller;
+    let min_s = settings.shaping.map_or(0.0, |s| s.duration_min_s);
+    settings
+        .build()
+        .ok()
+        .and_then(|c| {
+            c.shaping()
+                .map(|p| f64::from(p.duration_s(x0_m, x1_m).max(min_s)))
+        })
+        .unwrap_or(0.1)
 }
 
 /// Runs one case.

@@ -1,10 +1,13 @@
 //! The command line's behaviour, through its library functions (no subprocess): the
-//! default command's table rows and files, `run`, `scenarios` and `montecarlo`.
+//! default command's table rows and files, `run`, `scenarios`, `montecarlo`, `compare`,
+//! `tune`, `faults` and `golden`.
 
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
-use hil_sim::cli::{self, montecarlo, paper, run, scenarios, Cli, Command, Output};
+use hil_sim::cli::{
+    self, compare, faults, golden, montecarlo, paper, run, scenarios, tune, Cli, Command, Output,
+};
 use hil_sim::report::trace::COLUMNS;
 
 fn dir(test: &str) -> PathBuf {
@@ -236,7 +239,104 @@ fn montecarlo_reports_the_worst_case_and_every_draw() {
     }
     assert_eq!(csv_rows(&out.join("draws.csv")), 4);
     assert!(csv_rows(&out.join("worst.csv")) >= 10);
+    // The product's targets: four plants of the product's law all pass.
+    assert_eq!(o.failing, 0, "{printed}");
+    assert!(
+        printed.contains("4 of 4 draws pass every target"),
+        "{printed}"
+    );
+    assert_eq!(csv_rows(&out.join("targets.csv")), 7);
     // Dispatch reaches the same code.
     let cli = Cli::try_parse_from(["hil-sim", "scenarios"]).unwrap();
     cli::dispatch(cli, &mut Vec::new()).unwrap();
+}
+
+/// The three laws at three rates and three supplies: only the practical law passes, in all
+/// nine cells; table, CSV and figure.
+#[test]
+fn compare_passes_only_the_practical_law() {
+    let out = dir("compare");
+    let args = compare::Args {
+        output: Output {
+            out: Some(out.clone()),
+        },
+        ..compare::Args::default()
+    };
+    let mut printed = Vec::new();
+    let o = compare::run(&args, &mut printed).unwrap();
+    assert_eq!(o.rows.len(), 27);
+    for r in &o.rows {
+        assert_eq!(
+            r.pass(),
+            r.law == "discrete",
+            "{} {} {}: {:?}",
+            r.law,
+            r.rate_hz,
+            r.supply_v,
+            r.misses
+        );
+    }
+    assert_eq!(csv_rows(&out.join("compare.csv")), 27);
+    assert_png(&out.join("compare.png"));
+    let bad = compare::Args {
+        duration_s: 0.05,
+        ..args
+    };
+    let e = compare::run(&bad, &mut Vec::new()).unwrap_err();
+    assert!(e.to_string().contains("--duration-s = 0.05"), "{e}");
+}
+
+/// Every fault-injection case passes at 20 kHz; the table is written.
+#[test]
+fn faults_prints_and_writes_the_table() {
+    let out = dir("faults");
+    let args = faults::Args {
+        rate_hz: 20e3,
+        supply_v: 24.0,
+        output: Output {
+            out: Some(out.clone()),
+        },
+    };
+    let mut printed = Vec::new();
+    let o = faults::run(&args, &mut printed).unwrap();
+    assert_eq!(o.cases.len(), 11);
+    assert!(o.cases.iter().all(hil_sim::faults::Outcome::pass));
+    assert_eq!(csv_rows(&out.join("faults.csv")), 11);
+}
+
+/// A two-point search at one rate picks the candidate that passes and writes the tuned
+/// scenario, which loads back.
+#[test]
+fn tune_writes_a_tuned_scenario_that_loads() {
+    let out = dir("tune");
+    let args = tune::Args {
+        scenario: "product-sequence".into(),
+        rates_hz: vec![20e3],
+        validate: 4,
+        substeps: 1,
+        output: Output {
+            out: Some(out.clone()),
+        },
+    };
+    let mut printed = Vec::new();
+    let tuned = tune::run(&args, &mut printed).unwrap();
+    let printed = String::from_utf8(printed).unwrap();
+    let tuned = tuned.unwrap_or_else(|| panic!("{printed}"));
+    assert!(
+        printed.contains("a common Lyapunov matrix exists"),
+        "{printed}"
+    );
+    let back = hil_sim::catalog::load(out.join("tuned.toml").to_str().unwrap()).unwrap();
+    assert_eq!(back.controller, tuned.controller);
+    assert_eq!(csv_rows(&out.join("candidates.csv")), 48);
+}
+
+/// `golden` refuses a folder that does not exist, by name.
+#[test]
+fn golden_names_a_missing_folder() {
+    let args = golden::Args {
+        dir: PathBuf::from("/no/such/folder"),
+    };
+    let e = golden::run(&args, &mut Vec::new()).unwrap_err();
+    assert!(e.to_string().contains("/no/such/folder"), "{e}");
 }

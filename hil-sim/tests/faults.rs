@@ -31,12 +31,13 @@ fn every_injected_fault_is_named_within_a_millisecond() {
         );
     }
     // Measured: the rails in one tick (50 us), the bus checks in two, the coil checks in
-    // five, the stuck position at the fastest point of the move in 14 (0.7 ms).
+    // five, the stuck position at the fastest point of the move in 0.80 ms (its 0.7 ms
+    // window, the sample delay and where the anchor last moved).
     let slowest = outcomes
         .iter()
         .filter_map(|o| o.detected_after_s)
         .fold(0.0_f64, f64::max);
-    assert!(slowest <= 0.7e-3 + 1e-9, "{slowest}");
+    assert!(slowest <= 0.85e-3, "{slowest}");
 }
 
 /// The same cases at 10 kHz (a tick is 100 us, the deadline is still 1 ms). Two limits of

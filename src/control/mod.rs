@@ -123,8 +123,8 @@ impl Settings {
     /// window is about the supply's health, not the law's headroom).
     ///
     /// Gains, observer bandwidth and shaping margin are the ones `hil-sim tune` designed
-    /// for the paper's actuator over 10, 20 and 50 kHz (worst metric over the 33 corner
-    /// plants of each rate at 89 % of its target). The observer bandwidth is 200 rad/s at
+    /// for the paper's actuator over 10, 20 and 50 kHz (`hil-sim tune`: worst metric over
+    /// the 33 corner plants of each rate at 91 % of its target). The observer bandwidth is 200 rad/s at
     /// 20 kHz and follows `w = 200 (f / 20 kHz)^(1/5)`: the noise variance of the
     /// disturbance estimate scales as `Ts w^5`, so this keeps the current ripple it causes
     /// the same at every rate (174 rad/s at 10 kHz, 240 rad/s at 50 kHz).
@@ -152,7 +152,7 @@ impl Settings {
             shaping: Some(trajectory::Settings {
                 accel_max_mps2: 20.0,
                 current_max_a: gains.current_max_a,
-                margin: 0.6,
+                margin: 0.7,
                 duration_min_s: 0.02,
             }),
             monitors: Monitors::product(gains.current_max_a),

@@ -12,7 +12,11 @@
 //! | (none), `paper` | the paper's example at 1 MHz and at 20 kHz: claims vs measured, figures |
 //! | `run <scenario>` | one scenario (embedded name or TOML file): metrics per segment, trace, figures |
 //! | `scenarios [name]` | lists the embedded scenarios, or prints one's TOML |
-//! | `montecarlo <scenario>` | draws plants from the uncertainty set: worst case of each metric, CSV of all draws |
+//! | `montecarlo <scenario>` | draws plants from the uncertainty set: worst case of each metric, the product's targets, CSV of all draws |
+//! | `compare` | the three laws at 10, 20, 50 kHz and 24, 48, 150 V: table, CSV, figure |
+//! | `tune [scenario]` | designs the practical law's gains (Theorem 1, corner plants, minimax) |
+//! | `faults` | the fault-injection cases: fault named, detection time, peak current |
+//! | `golden` | records the golden traces the Cortex-M4F replays (`tests/golden/`) |
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -20,10 +24,14 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub mod compare;
+pub mod faults;
+pub mod golden;
 pub mod montecarlo;
 pub mod paper;
 pub mod run;
 pub mod scenarios;
+pub mod tune;
 
 /// Host simulator of the electromagnetic actuator around the `ema` control core.
 ///
@@ -48,8 +56,18 @@ pub enum Command {
     /// Lists the embedded scenarios, or prints the TOML of one.
     Scenarios(scenarios::Args),
     /// Runs a scenario over plants drawn from the uncertainty set, in parallel: the worst
-    /// case of each metric, and a CSV of every draw.
+    /// case of each metric, the product's targets, and a CSV of every draw.
     Montecarlo(montecarlo::Args),
+    /// Compares the paper's law, the boundary-layer law and the practical law at 10, 20 and
+    /// 50 kHz on 24, 48 and 150 V: table, CSV and figure.
+    Compare(compare::Args),
+    /// Designs the practical law's gains for an actuator: Theorem 1, the corner plants of
+    /// the uncertainty set at several rates, a Monte Carlo validation.
+    Tune(tune::Args),
+    /// Runs the fault-injection cases: the fault named, detection time, peak current.
+    Faults(faults::Args),
+    /// Records the golden traces the emulated Cortex-M4F must reproduce bit for bit.
+    Golden(golden::Args),
 }
 
 /// Where a subcommand writes its files.
@@ -102,6 +120,10 @@ pub fn dispatch(cli: Cli, out: &mut dyn Write) -> anyhow::Result<()> {
         Command::Run(a) => run::run(&a, out).map(drop),
         Command::Scenarios(a) => scenarios::run(&a, out),
         Command::Montecarlo(a) => montecarlo::run(&a, out).map(drop),
+        Command::Compare(a) => compare::run(&a, out).map(drop),
+        Command::Tune(a) => tune::run(&a, out).map(drop),
+        Command::Faults(a) => faults::run(&a, out).map(drop),
+        Command::Golden(a) => golden::run(&a, out).map(drop),
     }
 }
 

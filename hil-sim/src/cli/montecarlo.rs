@@ -1,7 +1,8 @@
 //! `hil-sim montecarlo <scenario> --n N --seed S`: the scenario over `N` plants drawn from
 //! the uncertainty set (the scenario's own when its plant is `kind = "drawn"`, else the
 //! default set), in parallel with a progress bar ([`crate::montecarlo()`]); prints the
-//! worst case of each metric and writes every draw (plant parameters and metrics) as CSV.
+//! worst case of each metric and the product's targets (issue 4: how many draws miss each)
+//! and writes every draw (plant parameters and metrics) as CSV.
 //!
 //! RK4 substeps: unless `--substeps` is given, the fewest per period (at most the
 //! scenario's own) whose open-loop replay of draw 0 stays within 1e-4 of a 1 us RK4
@@ -16,6 +17,7 @@ use crate::montecarlo::{draw_seed, montecarlo_with};
 use crate::plant::{ForceModel, Surface};
 use crate::report::{self, sig, Table, METRICS_COLUMNS};
 use crate::scenario::{TruePlant, Uncertainty};
+use crate::targets::{Targets, Worst};
 use crate::{catalog, Draw, Segment};
 
 /// Arguments of `montecarlo`.
@@ -49,6 +51,10 @@ pub struct Outcome {
     pub draws: Vec<Draw>,
     /// Worst case of each metric.
     pub worst: Table,
+    /// The product's targets: draws missing each.
+    pub targets: Table,
+    /// Draws that miss at least one target.
+    pub failing: usize,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -139,6 +145,48 @@ pub fn worst_table(draws: &[Draw]) -> Table {
         ]);
     }
     t
+}
+
+/// The product's targets over the draws: worst value, target, draws missing it; and the
+/// number of draws that miss any.
+#[must_use]
+pub fn targets_table(draws: &[Draw], t: &Targets) -> (Table, usize) {
+    let misses: Vec<Vec<&'static str>> = draws
+        .iter()
+        .map(|d| Worst::of([&d.metrics]).misses(t))
+        .collect();
+    let all = Worst::of_draws(draws);
+    let count = |name: &str| misses.iter().filter(|m| m.contains(&name)).count();
+    let mut table = Table::new(["target", "limit", "worst", "draws missing it"]);
+    #[allow(clippy::cast_precision_loss)]
+    for (label, key, limit, worst) in [
+        ("settling 2 % [s]", "settling", t.settling_s, all.settling_s),
+        (
+            "overshoot [%]",
+            "overshoot",
+            t.overshoot_pct,
+            all.overshoot_pct,
+        ),
+        (
+            "|steady error| [%]",
+            "steady error",
+            t.steady_error_pct,
+            all.steady_error_pct,
+        ),
+        ("ripple p-p [A]", "ripple", t.ripple_pp_a, all.ripple_pp_a),
+        ("peak current [A]", "current", t.current_a, all.current_a),
+        ("peak |u| [V]", "voltage", t.voltage_v, all.voltage_v),
+        ("no fault", "fault", 0.0, all.faulted_runs as f64),
+    ] {
+        table.push([
+            label.to_owned(),
+            sig(limit, 3),
+            sig(worst, 4),
+            count(key).to_string(),
+        ]);
+    }
+    let failing = misses.iter().filter(|m| !m.is_empty()).count();
+    (table, failing)
 }
 
 /// Every draw: one row per draw and segment, plant parameters then metrics.
@@ -270,6 +318,15 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     )?;
     let worst = worst_table(&draws);
     write!(out, "\nworst case over the draws:\n{}", worst.to_text())?;
+    let (targets, failing) = targets_table(&draws, &Targets::product(sc.supply.voltage_v));
+    write!(
+        out,
+        "\nthe product's targets on every step segment (issue 4):\n{}{} of {} draws pass \
+         every target\n",
+        targets.to_text(),
+        draws.len() - failing,
+        draws.len()
+    )?;
 
     report::create_dir(&dir)?;
     let mut files = Vec::new();
@@ -279,11 +336,16 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     let path = dir.join("worst.csv");
     worst.write_csv(&path)?;
     files.push(path);
+    let path = dir.join("targets.csv");
+    targets.write_csv(&path)?;
+    files.push(path);
     super::list_files(out, &files)?;
     Ok(Outcome {
         substeps,
         draws,
         worst,
+        targets,
+        failing,
         files,
     })
 }

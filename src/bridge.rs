@@ -175,6 +175,58 @@ impl<P: SetDutyCycle, O: OutputPin> HBridge<P, O> {
     }
 }
 
+/// A PWM channel that drives nothing and remembers its last duty: for replaying traces,
+/// documentation examples and tests, where the bridge's outputs are read from [`Drive`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NullPwm {
+    /// Full-scale compare value it reports.
+    pub max_duty: u16,
+    /// The last duty written.
+    pub duty: u16,
+}
+
+impl NullPwm {
+    /// A channel with full scale `max_duty`.
+    #[must_use]
+    pub const fn new(max_duty: u16) -> Self {
+        Self { max_duty, duty: 0 }
+    }
+}
+
+impl embedded_hal::pwm::ErrorType for NullPwm {
+    type Error = core::convert::Infallible;
+}
+
+impl SetDutyCycle for NullPwm {
+    fn max_duty_cycle(&self) -> u16 {
+        self.max_duty
+    }
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
+        self.duty = duty;
+        Ok(())
+    }
+}
+
+/// A pin that drives nothing and remembers its last level (`true` = high); see
+/// [`NullPwm`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NullPin(pub bool);
+
+impl embedded_hal::digital::ErrorType for NullPin {
+    type Error = core::convert::Infallible;
+}
+
+impl OutputPin for NullPin {
+    fn set_low(&mut self) -> Result<(), Self::Error> {
+        self.0 = false;
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Self::Error> {
+        self.0 = true;
+        Ok(())
+    }
+}
+
 /// PWM compare value for a duty fraction: nearest code, `NaN` and negatives give 0,
 /// fractions of 1 and more give `max`.
 #[inline]

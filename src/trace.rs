@@ -634,43 +634,15 @@ const fn len_u16(n: usize) -> u16 {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::bridge::HBridge;
-    use core::convert::Infallible;
-    use embedded_hal::digital::ErrorType as PinErrorType;
-    use embedded_hal::pwm::ErrorType as PwmErrorType;
+    use crate::bridge::{HBridge, NullPin, NullPwm};
     use std::vec::Vec;
-
-    struct Pwm(u16);
-    impl PwmErrorType for Pwm {
-        type Error = Infallible;
-    }
-    impl SetDutyCycle for Pwm {
-        fn max_duty_cycle(&self) -> u16 {
-            self.0
-        }
-        fn set_duty_cycle(&mut self, _: u16) -> Result<(), Infallible> {
-            Ok(())
-        }
-    }
-    struct Pin;
-    impl PinErrorType for Pin {
-        type Error = Infallible;
-    }
-    impl OutputPin for Pin {
-        fn set_low(&mut self) -> Result<(), Infallible> {
-            Ok(())
-        }
-        fn set_high(&mut self) -> Result<(), Infallible> {
-            Ok(())
-        }
-    }
 
     /// A short trace of `case` with a position ramp (re-armed after every fault the
     /// synthetic codes cause), then the position sensor on its rail for 3 ticks.
     fn make(case: &Case, ticks: u32) -> Vec<u8> {
         let cfg = (case.settings)().build().unwrap();
         let mut st = cfg.initial_state();
-        let mut b = HBridge::new(Pwm(4201), Pin, Pin).unwrap();
+        let mut b = HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap();
         let mut out = Vec::from(Header::new(case, &cfg, 4201, ticks).encode());
         let mut tripped = false;
         for k in 0..u16::try_from(ticks).unwrap() {
@@ -771,7 +743,7 @@ mod tests {
         let mut t = make(&CASES[0], 40);
         let (trace, _, cfg) = open(&t).unwrap();
         assert_eq!(trace.header().max_duty, 4201);
-        let mut b = HBridge::new(Pwm(4201), Pin, Pin).unwrap();
+        let mut b = HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap();
         assert_eq!(replay(&trace, &cfg, &mut b), Ok(40));
         // The synthetic codes trip the monitors: the trace re-arms, and the replay follows.
         assert!(trace.records().filter(|r| r.input.rearm).count() > 0);
@@ -781,7 +753,7 @@ mod tests {
         // Flip the lowest bit of the desired current of tick 17.
         t[HEADER_LEN + 17 * RECORD_LEN + 19] ^= 1;
         let (trace, _, cfg) = open(&t).unwrap();
-        let mut b = HBridge::new(Pwm(4201), Pin, Pin).unwrap();
+        let mut b = HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap();
         let m = replay(&trace, &cfg, &mut b).unwrap_err();
         assert_eq!((m.tick, m.field), (17, "i_d"));
         assert_eq!(m.expected ^ m.actual, 1);

@@ -6,39 +6,11 @@
 //! (`tests/qemu_golden.rs`) runs. Every reference case must have a trace of at least
 //! `ema::trace::MIN_GOLDEN_TICKS` ticks, and the on-target check must include it.
 
-use core::convert::Infallible;
 use std::path::{Path, PathBuf};
 
-use ema::bridge::HBridge;
+use ema::bridge::{HBridge, NullPin, NullPwm};
 use ema::law;
 use ema::trace::{self, CASES, MIN_GOLDEN_TICKS};
-use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
-use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
-
-struct Pwm(u16);
-impl PwmErrorType for Pwm {
-    type Error = Infallible;
-}
-impl SetDutyCycle for Pwm {
-    fn max_duty_cycle(&self) -> u16 {
-        self.0
-    }
-    fn set_duty_cycle(&mut self, _: u16) -> Result<(), Infallible> {
-        Ok(())
-    }
-}
-struct Pin;
-impl PinErrorType for Pin {
-    type Error = Infallible;
-}
-impl OutputPin for Pin {
-    fn set_low(&mut self) -> Result<(), Infallible> {
-        Ok(())
-    }
-    fn set_high(&mut self) -> Result<(), Infallible> {
-        Ok(())
-    }
-}
 
 fn golden(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -61,7 +33,11 @@ fn every_case_has_a_current_trace_that_replays_bit_for_bit() {
         assert_eq!(found.name, case.name, "{}", path.display());
         let ticks = trace.header().ticks;
         assert!(ticks >= MIN_GOLDEN_TICKS, "{}: {ticks} ticks", case.name);
-        let Ok(mut bridge) = HBridge::new(Pwm(trace.header().max_duty), Pin, Pin);
+        let Ok(mut bridge) = HBridge::new(
+            NullPwm::new(trace.header().max_duty),
+            NullPin(false),
+            NullPin(false),
+        );
         match trace::replay(&trace, &cfg, &mut bridge) {
             Ok(n) => assert_eq!(n, ticks),
             Err(m) => panic!("{}: stale trace, {m}; {REGENERATE}", case.name),

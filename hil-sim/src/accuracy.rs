@@ -114,14 +114,7 @@ impl Reference {
     pub fn accuracy(&self, substeps: u32) -> Result<Accuracy, Error> {
         let sc = &self.scenario;
         let plant = sc.plant.resolve(&sc.controller.plant);
-        let mut st = Stepper::new(
-            plant,
-            sc.supply,
-            &sc.bridge,
-            substeps,
-            sc.rate_hz(),
-            &sc.initial,
-        )?;
+        let mut st = Stepper::for_scenario(sc, plant, substeps)?;
         let (mut dx, mut di) = (0.0_f64, 0.0_f64);
         for (d, (x_ref, i_ref)) in self.drives.iter().zip(&self.truth) {
             let now = st.sample();

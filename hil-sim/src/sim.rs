@@ -145,14 +145,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
     let plant = scenario.plant.resolve(&scenario.controller.plant);
     plant.validate()?;
     let bounds = metrics::bounds_check(&scenario.controller.plant, &plant)?;
-    let mut stepper = Stepper::new(
-        plant,
-        scenario.supply,
-        &scenario.bridge,
-        scenario.integration.substeps,
-        scenario.rate_hz(),
-        &scenario.initial,
-    )?;
+    let mut stepper = Stepper::for_scenario(scenario, plant, scenario.integration.substeps)?;
 
     let n = scenario.ticks();
     let (pwm, dir, en, lines) = hal::bridge_io(scenario.bridge.max_duty);
@@ -424,6 +417,22 @@ impl Stepper {
     /// Changes the supply's source voltage (an injected sag or over-voltage) \[V\].
     pub fn set_supply_v(&mut self, voltage_v: f64) {
         self.supply.voltage_v = voltage_v;
+    }
+
+    /// The plant side of `scenario` with `plant` (the scenario's true plant, resolved)
+    /// and `substeps` RK4 substeps per period.
+    ///
+    /// # Errors
+    /// As [`Stepper::new`].
+    pub fn for_scenario(scenario: &Scenario, plant: Params, substeps: u32) -> Result<Self, Error> {
+        Self::new(
+            plant,
+            scenario.supply,
+            &scenario.bridge,
+            substeps,
+            scenario.rate_hz(),
+            &scenario.initial,
+        )
     }
 
     /// The true state now.

@@ -222,15 +222,7 @@ fn a_sequence_has_metrics_per_segment() {
 
 fn replay(sc: &Scenario, drives: &[Drive], substeps: u32) -> Vec<Truth> {
     let plant = sc.plant.resolve(&sc.controller.plant);
-    let mut st = Stepper::new(
-        plant,
-        sc.supply,
-        &sc.bridge,
-        substeps,
-        sc.rate_hz(),
-        &sc.initial,
-    )
-    .unwrap();
+    let mut st = Stepper::for_scenario(sc, plant, substeps).unwrap();
     drives
         .iter()
         .map(|d| {

@@ -1,4 +1,4 @@
-//! The one tick: sense -> observer -> law -> supervisor -> bridge.
+//! The one tick: sense -> shaping -> observer -> law -> detectors -> bridge.
 //!
 //! [`Settings`] is the plain description (what a configuration file holds);
 //! [`Settings::build`] validates it into an immutable [`Config`], the only thing the tick
@@ -7,24 +7,12 @@
 //! supplies ideal SI measurements instead of converter codes).
 //!
 //! ```
+//! use ema::bridge::{HBridge, NullPin, NullPwm};
 //! use ema::control::Settings;
 //! use ema::sense::Measurement;
-//! # use embedded_hal::{digital::{ErrorType as PinError, OutputPin}, pwm::{ErrorType, SetDutyCycle}};
-//! # struct Pwm(u16);
-//! # impl ErrorType for Pwm { type Error = core::convert::Infallible; }
-//! # impl SetDutyCycle for Pwm {
-//! #     fn max_duty_cycle(&self) -> u16 { 4200 }
-//! #     fn set_duty_cycle(&mut self, d: u16) -> Result<(), Self::Error> { self.0 = d; Ok(()) }
-//! # }
-//! # struct Pin;
-//! # impl PinError for Pin { type Error = core::convert::Infallible; }
-//! # impl OutputPin for Pin {
-//! #     fn set_low(&mut self) -> Result<(), Self::Error> { Ok(()) }
-//! #     fn set_high(&mut self) -> Result<(), Self::Error> { Ok(()) }
-//! # }
 //! let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
 //! let mut state = cfg.initial_state();
-//! let mut bridge = ema::bridge::HBridge::new(Pwm(0), Pin, Pin).unwrap();
+//! let mut bridge = HBridge::new(NullPwm::new(4200), NullPin(false), NullPin(false)).unwrap();
 //!
 //! // Armature at 1 mm, no current, 24 V bus, target 3 mm: the law drives current in.
 //! let frame = cfg.sense().frame(&Measurement { x_m: 1e-3, i_a: 0.0, vbus_v: 24.0 });
@@ -466,44 +454,12 @@ mod properties;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bridge::Mode;
-    use core::convert::Infallible;
-    use embedded_hal::digital::ErrorType as PinErrorType;
-    use embedded_hal::pwm::ErrorType as PwmErrorType;
+    use crate::bridge::{Mode, NullPin, NullPwm};
 
-    /// A PWM that remembers its duty.
-    struct Pwm(u16);
-    impl PwmErrorType for Pwm {
-        type Error = Infallible;
-    }
-    impl SetDutyCycle for Pwm {
-        fn max_duty_cycle(&self) -> u16 {
-            4200
-        }
-        fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
-            self.0 = duty;
-            Ok(())
-        }
-    }
-    struct Pin(bool);
-    impl PinErrorType for Pin {
-        type Error = Infallible;
-    }
-    impl OutputPin for Pin {
-        fn set_low(&mut self) -> Result<(), Infallible> {
-            self.0 = false;
-            Ok(())
-        }
-        fn set_high(&mut self) -> Result<(), Infallible> {
-            self.0 = true;
-            Ok(())
-        }
-    }
-
-    fn setup() -> (Config, State, HBridge<Pwm, Pin>) {
+    fn setup() -> (Config, State, HBridge<NullPwm, NullPin>) {
         let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
         let st = cfg.initial_state();
-        let b = HBridge::new(Pwm(0), Pin(false), Pin(false)).unwrap();
+        let b = HBridge::new(NullPwm::new(4200), NullPin(false), NullPin(false)).unwrap();
         (cfg, st, b)
     }
 

@@ -7,6 +7,42 @@ use hil_sim::faults::{cases, evaluate, table, DEADLINE_S};
 use hil_sim::scenario::Injected;
 use hil_sim::{run, Scenario};
 
+/// One test per fault-injection case, by name: the expected fault within 1 ms, the current
+/// under the trip level, the bridge coasting after.
+macro_rules! case {
+    ($test:ident, $name:literal) => {
+        #[test]
+        fn $test() {
+            let all = cases(20e3, 24.0);
+            let case = all.iter().find(|c| c.name == $name).unwrap();
+            let o = evaluate(case).unwrap();
+            assert!(
+                o.pass(),
+                "{}: expected {} within {} s, got {:?} after {:?} s, peak {} A, coasting {}",
+                o.name,
+                o.expected,
+                DEADLINE_S,
+                o.fault,
+                o.detected_after_s,
+                o.peak_current_a,
+                o.coasting
+            );
+        }
+    };
+}
+
+case!(position_sensor_open, "position sensor open");
+case!(position_sensor_shorted, "position sensor shorted");
+case!(position_sensor_stuck, "position sensor stuck");
+case!(current_sensor_stuck, "current sensor stuck");
+case!(current_sensor_offset, "current sensor offset");
+case!(coil_open, "coil open");
+case!(coil_short, "coil short");
+case!(supply_sag, "supply sag");
+case!(supply_over_voltage, "supply over-voltage");
+case!(missed_deadlines, "missed deadlines");
+case!(plant_outside_the_bounds, "plant outside the bounds");
+
 #[test]
 fn every_injected_fault_is_named_within_a_millisecond() {
     let outcomes = table(20e3, 24.0).unwrap();

@@ -18,6 +18,25 @@
 //! paper's robust switching voltage `+-alpha3` remains. The price is the one the paper's
 //! proof cannot avoid: `S` is no longer driven to 0, only into the layer, so the current
 //! (and the position) keep an error that grows with `phi`.
+//!
+//! ```
+//! use ema::law::{self, boundary, paper, Law};
+//! use ema::model::Plant;
+//!
+//! let ts = 1.0 / 20_000.0;
+//! let plant = Plant::paper();
+//! let bl = boundary::Config::build(&paper::Gains::paper(), &plant, ts, 0).unwrap();
+//! // At 3 mm on target, 0.1 mm/s closing, 5.2 A: x3d = 5.07 A, S = 0.13 A is inside the
+//! // layer, so the law answers proportionally, not with the paper's +-alpha3.
+//! let input = law::Input {
+//!     x_m: 3e-3, v_mps: -1e-4, i_a: 5.2, vbus_v: 24.0,
+//!     reference: law::Reference::hold(3e-3), ..Default::default()
+//! };
+//! let out = bl.step(&mut paper::State::default(), &input);
+//! let gain = plant.envelope().unwrap().l_lo(3e-3) / ts; // L_lo / Ts, 0.93 ohm
+//! assert!((out.u_v + gain * out.s_a).abs() < 1e-4);
+//! assert!(out.u_v.abs() < 1.0);
+//! ```
 
 use super::paper::{self, State};
 use super::{Input, Law, Output};

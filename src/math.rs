@@ -95,6 +95,34 @@ pub fn min(a: f32, b: f32) -> f32 {
     }
 }
 
+/// The running maximum `acc` updated with `x`: `x` when it is larger, else `acc`; a `NaN`
+/// `x` is skipped. One comparison where [`max`] needs two (its `NaN` test of `b`): for a
+/// fold over a set of values, as the fault detectors' corner banks do every tick.
+///
+/// `acc` must not be `NaN` (start from `-inf` or a value); then this equals
+/// `max(acc, x)` bit for bit, zeros included. A `NaN` `acc` is returned as is.
+#[inline]
+#[must_use]
+pub fn running_max(acc: f32, x: f32) -> f32 {
+    // `!(acc <= x)`: `acc > x`, or unordered (`x` is `NaN`, as `acc` is not).
+    if acc <= x {
+        x
+    } else {
+        acc
+    }
+}
+
+/// The running minimum `acc` updated with `x`; see [`running_max`].
+#[inline]
+#[must_use]
+pub fn running_min(acc: f32, x: f32) -> f32 {
+    if acc >= x {
+        x
+    } else {
+        acc
+    }
+}
+
 /// `x` limited to `[lo, hi]`, for `lo <= hi`. Unlike `f32::clamp` it has no panic path
 /// (`f32::clamp` asserts `lo <= hi` at run time, which the tick cannot afford even when
 /// validation guarantees it); `NaN` stays `NaN`.
@@ -157,6 +185,23 @@ mod tests {
             }
         }
         assert_eq!(max(-0.0, 0.0).to_bits(), 0);
+        // The running extremes equal max/min bit for bit whenever the accumulator is not
+        // NaN, NaN operands and signed zeros included.
+        for acc in v.iter().copied().filter(|a| !a.is_nan()) {
+            for x in v {
+                assert_eq!(
+                    running_max(acc, x).to_bits(),
+                    max(acc, x).to_bits(),
+                    "{acc} {x}"
+                );
+                assert_eq!(
+                    running_min(acc, x).to_bits(),
+                    min(acc, x).to_bits(),
+                    "{acc} {x}"
+                );
+            }
+        }
+        assert!(running_max(f32::NAN, 1.0).is_nan());
         assert_eq!(clamp(5.0, 0.0, 4.0), 4.0);
         assert_eq!(clamp(-1.0, 0.0, 4.0), 0.0);
         assert_eq!(clamp(2.5, 0.0, 4.0), 2.5);

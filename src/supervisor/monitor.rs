@@ -448,16 +448,17 @@ impl Config {
             (gain(k_hi, self.r_lo), self.r_lo),
             (gain(k_hi, self.r_hi), self.r_hi),
         ];
+        // Folds from +-inf, never NaN: the one-comparison running extremes are exact.
         let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
         for (f, res) in corners {
             let d = f * (u - res * i0);
-            d_min = math::min(d_min, d);
-            d_max = math::max(d_max, d);
+            d_min = math::running_min(d_min, d);
+            d_max = math::running_max(d_max, d);
         }
         if let Some(f) = self.bank(r, st, inp.i_a, i0, u, &corners) {
             return Some(f);
         }
-        let widen = r.margin * math::max(d_min.abs(), d_max.abs()) + self.noise_a;
+        let widen = r.margin * math::running_max(d_min.abs(), d_max.abs()) + self.noise_a;
         let d_meas = inp.i_a - i0;
         let (lo, hi) = (d_min - widen, d_max + widen);
         let big = d_meas > hi + r.jump_a || d_meas < lo - r.jump_a;
@@ -540,14 +541,12 @@ impl Config {
         }
         st.bank_ticks = st.bank_ticks.saturating_add(1);
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        let mut least = f32::INFINITY;
         for (c, &(f, res)) in st.bank.iter_mut().zip(corners) {
             *c += f * (u - res * *c);
-            lo = math::min(lo, *c);
-            hi = math::max(hi, *c);
-            least = math::min(least, (*c - st.bank_anchor).abs());
+            lo = math::running_min(lo, *c);
+            hi = math::running_max(hi, *c);
         }
-        let spread = math::max((hi - st.bank_anchor).abs(), (lo - st.bank_anchor).abs());
+        let spread = math::running_max((hi - st.bank_anchor).abs(), (lo - st.bank_anchor).abs());
         let widen = r.margin * spread + self.noise_a;
         // Below the bank in the direction the coil is driven: the whole bank moved away
         // from the anchor (all corners on one side) and the reading lags all of them.
@@ -565,6 +564,14 @@ impl Config {
         if i_a.abs() < r.open_a && i0.abs() < r.open_a {
             return Some(Fault::CoilOpen);
         }
+        // The least admissible change since the anchor, `min |c - anchor|` over the
+        // corners: the reading is behind, so every corner lies on one side of the anchor
+        // and (rounding is monotonic) the nearest is `lo` when rising, `hi` when falling.
+        let least = if rising {
+            lo - st.bank_anchor
+        } else {
+            st.bank_anchor - hi
+        };
         let moved = (i_a - st.bank_anchor).abs();
         Some(if moved * r.gross < least {
             Fault::CurrentStuck

@@ -546,6 +546,7 @@ impl Config {
             lo = math::running_min(lo, *c);
             hi = math::running_max(hi, *c);
         }
+        // Neither distance is NaN (the folds skip NaN, the anchor is a finite reading).
         let spread = math::running_max((hi - st.bank_anchor).abs(), (lo - st.bank_anchor).abs());
         let widen = r.margin * spread + self.noise_a;
         // Below the bank in the direction the coil is driven: the whole bank moved away
@@ -669,6 +670,41 @@ mod tests {
         assert_eq!(run(&c, 0.4, 1.0, |_| 0.0), Some(Fault::CoilOpen));
         // A coil 70 % more inductive than nominal (the bounds allow 25 %).
         assert_eq!(run(&c, 0.4, 1.7, |i| i), Some(Fault::ModelBounds));
+    }
+
+    /// A reading that lags every admissible coil under a steady drive, in either direction
+    /// of the drive: frozen, it is a stuck sensor; still moving at more than half the
+    /// slowest coil's pace, it is a plant outside the bounds. The verdict compares the
+    /// reading's change with the bank's least admissible change on the side it moves to.
+    #[test]
+    fn a_lagging_reading_is_stuck_or_out_of_bounds_in_both_directions() {
+        let c = cfg(0);
+        let g = 3e-3;
+        for (u, i_start) in [(6.0_f32, 2.0_f32), (-6.0, 8.0)] {
+            for (pace, expect) in [(0.0, Fault::CurrentStuck), (0.6, Fault::ModelBounds)] {
+                let mut st = MonitorState::default();
+                let mut i = i_start;
+                let mut found = None;
+                for k in 0..20 {
+                    let inp = Inputs {
+                        x_m: g + (k % 2) as f32 * 1e-6,
+                        // The nominal coil's change since the start, scaled by `pace`.
+                        i_a: i_start + pace * (i - i_start),
+                        r_m: g,
+                        r_v_mps: 0.0,
+                    };
+                    if let Some(f) = c.check(&mut st, &inp) {
+                        found = Some((f, k));
+                        break;
+                    }
+                    c.record_drive(&mut st, u, true);
+                    i = coil_step(g, u, i, 0.4, 1.0);
+                }
+                let (f, k) = found.unwrap_or_else(|| panic!("u {u} pace {pace}: nothing"));
+                assert_eq!(f, expect, "u {u} pace {pace}");
+                assert!(k <= 6, "u {u} pace {pace}: after {k} ticks");
+            }
+        }
     }
 
     /// The coil short: the resistance drops to 0.05 ohm while the controller holds

@@ -15,6 +15,7 @@
 //!
 //! | module | concept |
 //! |---|---|
+//! | [`actuator`] | an actuator file (datasheet and bench) and every setting derived from it |
 //! | [`model`] | reluctance network with flux fringing, `rho`, `L`, `mu` and their bounds |
 //! | [`sense`] | raw ADC codes to SI measurements, plausibility |
 //! | [`observer`] | velocity (and a force disturbance) from the sampled position |
@@ -83,6 +84,7 @@
     )
 )]
 
+pub mod actuator;
 pub mod bridge;
 pub mod config;
 pub mod control;

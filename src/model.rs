@@ -476,6 +476,10 @@ impl Nominal {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Tolerance {
+    /// Airgap surfaces around the nominal fringing model: the actuators that exist (the
+    /// controller's [`Bounds`] may be wider, see [`crate::actuator`]) \[-\].
+    #[cfg_attr(feature = "serde", serde(default = "default_surface"))]
+    pub surface: f32,
     /// Moving mass \[-\].
     pub mass: f32,
     /// Spring constant \[-\].
@@ -486,12 +490,18 @@ pub struct Tolerance {
     pub resistance: f32,
 }
 
+#[cfg(feature = "serde")]
+const fn default_surface() -> f32 {
+    PAPER_SURFACE_TOLERANCE
+}
+
 impl Tolerance {
-    /// The product's design case: mass +-10 %, spring +-10 %, friction +-50 %,
-    /// resistance +-20 %.
+    /// The product's design case: surfaces +-20 %, mass +-10 %, spring +-10 %, friction
+    /// +-50 %, resistance +-20 %.
     #[must_use]
     pub const fn paper() -> Self {
         Self {
+            surface: PAPER_SURFACE_TOLERANCE,
             mass: 0.1,
             spring: 0.1,
             friction: 0.5,
@@ -505,6 +515,7 @@ impl Tolerance {
     /// The first bad tolerance, by name.
     pub fn validate(&self) -> Result<(), Error> {
         let below_one = 1.0 - f32::EPSILON;
+        config::within("plant.tolerance.surface", self.surface, 0.0, below_one)?;
         config::within("plant.tolerance.mass", self.mass, 0.0, below_one)?;
         config::within("plant.tolerance.spring", self.spring, 0.0, below_one)?;
         config::within("plant.tolerance.friction", self.friction, 0.0, below_one)?;
@@ -532,6 +543,8 @@ pub struct Dynamics {
     pub mass_kg: f32,
     /// Spring constant \[N/m\].
     pub spring_n_per_m: f32,
+    /// Spring force at `x1 = 0` \[N\] (the spring pulls toward `-x1` with `K x1 + F0`).
+    pub preload_n: f32,
     /// Viscous friction \[N s/m\].
     pub friction_n_s_per_m: f32,
     /// Reluctance network for the force `mu(g) x3^2 / 2`.
@@ -541,6 +554,20 @@ pub struct Dynamics {
 }
 
 impl Dynamics {
+    /// The spring's pull toward `-x1` at `x_m`, `K x + F0` \[N\].
+    #[inline]
+    #[must_use]
+    pub fn spring_force_n(&self, x_m: f32) -> f32 {
+        self.spring_n_per_m * x_m + self.preload_n
+    }
+
+    /// The magnet's pull `mu(g) i^2 / 2` at airgap `g_m` with coil current `i_a` \[N\].
+    #[inline]
+    #[must_use]
+    pub fn magnet_force_n(&self, g_m: f32, i_a: f32) -> f32 {
+        0.5 * self.circuit.force_coefficient_h_per_m(g_m) * i_a * i_a
+    }
+
     /// Acceleration \[m/s^2\] at `(x, v)` with coil current `i`.
     #[inline]
     #[must_use]
@@ -548,7 +575,7 @@ impl Dynamics {
         let mu = self
             .circuit
             .force_coefficient_h_per_m(self.convention.gap_m(x_m));
-        (0.5 * mu * i_a * i_a - self.spring_n_per_m * x_m - self.friction_n_s_per_m * v_mps)
+        (0.5 * mu * i_a * i_a - self.spring_force_n(x_m) - self.friction_n_s_per_m * v_mps)
             / self.mass_kg
     }
 }
@@ -564,6 +591,10 @@ pub struct Plant {
     pub mass_kg: f32,
     /// Spring constant `K` \[N/m\].
     pub spring_n_per_m: f32,
+    /// Spring preload `F0`: the spring's force at `x1 = 0` \[N\]; the spring pulls toward
+    /// `-x1` with `K x1 + F0` (0 in the paper).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub preload_n: f32,
     /// Viscous friction `lambda` \[N s/m\].
     pub friction_n_s_per_m: f32,
     /// Coil resistance `R` \[ohm\].
@@ -603,6 +634,7 @@ impl Plant {
         Self {
             mass_kg: 0.1,
             spring_n_per_m: 120.0,
+            preload_n: 0.0,
             friction_n_s_per_m: 5.0,
             resistance_ohm: 0.4,
             magnetics,
@@ -622,6 +654,7 @@ impl Plant {
         Ok(Dynamics {
             mass_kg: self.mass_kg,
             spring_n_per_m: self.spring_n_per_m,
+            preload_n: self.preload_n,
             friction_n_s_per_m: self.friction_n_s_per_m,
             circuit: envelope.nominal(),
             convention: self.convention,
@@ -642,6 +675,7 @@ impl Plant {
         Ok(Dynamics {
             mass_kg: self.mass_kg * (1.0 + t.mass),
             spring_n_per_m: self.spring_n_per_m * (1.0 - t.spring),
+            preload_n: self.preload_n * (1.0 - t.spring),
             friction_n_s_per_m: self.friction_n_s_per_m * (1.0 + t.friction),
             circuit: envelope.weakest(),
             convention: self.convention,
@@ -653,6 +687,20 @@ impl Plant {
     #[must_use]
     pub fn gap_m(&self, x_m: f32) -> f32 {
         self.convention.gap_m(x_m)
+    }
+
+    /// The surfaces real actuators of this design have: the nominal fringing model over
+    /// the stroke, `+-` [`Tolerance::surface`]. The controller's [`Plant::bounds`] contain
+    /// them and may be wider.
+    #[must_use]
+    pub fn physical_bounds(&self) -> Bounds {
+        let s = self.tolerance.surface;
+        Bounds::around(
+            &self.magnetics.fringing,
+            self.convention.gap_range_m(self.stroke_m),
+            s,
+            s,
+        )
     }
 
     /// The bounds envelope of this plant.
@@ -672,6 +720,7 @@ impl Plant {
     pub fn validate(&self) -> Result<(), Error> {
         config::positive("plant.mass_kg", self.mass_kg)?;
         config::at_least("plant.spring_n_per_m", self.spring_n_per_m, 0.0)?;
+        config::at_least("plant.preload_n", self.preload_n, 0.0)?;
         config::at_least("plant.friction_n_s_per_m", self.friction_n_s_per_m, 0.0)?;
         config::positive("plant.resistance_ohm", self.resistance_ohm)?;
         config::positive("plant.stroke_m", self.stroke_m)?;
@@ -694,11 +743,18 @@ impl Plant {
         Ok(())
     }
 
+    /// The spring's pull toward `-x1` at `x_m`, `K x + F0` \[N\].
+    #[inline]
+    #[must_use]
+    pub fn spring_force_n(&self, x_m: f32) -> f32 {
+        self.spring_n_per_m * x_m + self.preload_n
+    }
+
     /// Static current \[A\] that holds position `x_m` against the spring with the nominal
-    /// magnetics: `sqrt(2 K x / mu(g))` (0 where the spring needs no force).
+    /// magnetics: `sqrt(2 (K x + F0) / mu(g))` (0 where the spring needs no force).
     #[must_use]
     pub fn holding_current_a(&self, x_m: f32) -> f32 {
-        let force = self.spring_n_per_m * x_m;
+        let force = self.spring_force_n(x_m);
         if force <= 0.0 {
             return 0.0;
         }

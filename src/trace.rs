@@ -90,26 +90,27 @@ pub struct Case {
     /// `tests/golden/<name>.emat`.
     pub name: &'static str,
     /// Builds the settings.
-    pub settings: fn() -> Settings,
+    pub settings: fn() -> Result<Settings, crate::config::Error>,
 }
 
 /// The paper's law on the paper's actuator at 20 kHz from a 24 V bus.
-fn paper_20khz_24v() -> Settings {
-    Settings::paper(20_000.0, 24.0)
+fn paper_20khz_24v() -> Result<Settings, crate::config::Error> {
+    Ok(Settings::paper(20_000.0, 24.0))
 }
 
 /// The paper's law with its boundary layer, one sample of measurement delay, otherwise as
 /// [`paper_20khz_24v`].
-fn boundary_layer_20khz_24v() -> Settings {
-    Settings {
+fn boundary_layer_20khz_24v() -> Result<Settings, crate::config::Error> {
+    Ok(Settings {
         law: crate::law::Settings::BoundaryLayer(crate::law::paper::Gains::paper()),
         delay_ticks: 1,
         ..Settings::paper(20_000.0, 24.0)
-    }
+    })
 }
 
-/// The product's default (the practical discrete-time law) at 20 kHz from a 24 V bus.
-fn practical_20khz_24v() -> Settings {
+/// The product's default (the practical discrete-time law, the physical convention) at
+/// 20 kHz from a 24 V bus.
+fn practical_20khz_24v() -> Result<Settings, crate::config::Error> {
     Settings::practical(20_000.0, 24.0)
 }
 
@@ -213,14 +214,14 @@ pub struct Header {
 }
 
 impl Header {
-    /// The header for `ticks` records of `case`, as built into `cfg`, with a PWM of
-    /// `max_duty`.
+    /// The header for `ticks` records of `case`, whose `settings` were built into `cfg`,
+    /// with a PWM of `max_duty`.
     #[must_use]
-    pub fn new(case: &Case, cfg: &Config, max_duty: u16, ticks: u32) -> Self {
+    pub fn new(case: &Case, settings: &Settings, cfg: &Config, max_duty: u16, ticks: u32) -> Self {
         Self {
             max_duty,
             ticks,
-            settings_hash: settings_hash(&(case.settings)()),
+            settings_hash: settings_hash(settings),
             case: Name::new(case.name),
             law: Name::new(cfg.law().name()),
         }
@@ -509,7 +510,7 @@ pub enum OpenError {
 pub fn open(bytes: &[u8]) -> Result<(Trace<'_>, &'static Case, Config), OpenError> {
     let trace = Trace::parse(bytes).map_err(OpenError::Format)?;
     let case = case(trace.header.case.as_str()).ok_or(OpenError::UnknownCase)?;
-    let settings = (case.settings)();
+    let settings = (case.settings)().map_err(OpenError::Build)?;
     let current = settings_hash(&settings);
     if current != trace.header.settings_hash {
         return Err(OpenError::Settings {
@@ -640,10 +641,11 @@ mod tests {
     /// A short trace of `case` with a position ramp (re-armed after every fault the
     /// synthetic codes cause), then the position sensor on its rail for 3 ticks.
     fn make(case: &Case, ticks: u32) -> Vec<u8> {
-        let cfg = (case.settings)().build().unwrap();
+        let settings = (case.settings)().unwrap();
+        let cfg = settings.build().unwrap();
         let mut st = cfg.initial_state();
         let mut b = HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap();
-        let mut out = Vec::from(Header::new(case, &cfg, 4201, ticks).encode());
+        let mut out = Vec::from(Header::new(case, &settings, &cfg, 4201, ticks).encode());
         let mut tripped = false;
         for k in 0..u16::try_from(ticks).unwrap() {
             let rail = u32::from(k) + 3 >= ticks;
@@ -768,9 +770,9 @@ mod tests {
 
     #[test]
     fn settings_identity_tracks_every_field() {
-        let s = (CASES[0].settings)();
+        let s = (CASES[0].settings)().unwrap();
         let h = settings_hash(&s);
-        assert_eq!(h, settings_hash(&(CASES[0].settings)()));
+        assert_eq!(h, settings_hash(&(CASES[0].settings)().unwrap()));
         let mut t = s;
         t.limits.current_trip_a = f32::from_bits(t.limits.current_trip_a.to_bits() + 1);
         assert_ne!(settings_hash(&t), h);
@@ -784,7 +786,7 @@ mod tests {
         for (k, c) in CASES.iter().enumerate() {
             assert!(c.name.len() <= NAME_LEN, "{}", c.name);
             assert!(CASES[..k].iter().all(|o| o.name != c.name), "{}", c.name);
-            (c.settings)().build().unwrap();
+            (c.settings)().unwrap().build().unwrap();
             assert_eq!(case(c.name).unwrap().name, c.name);
         }
     }

@@ -22,8 +22,8 @@
 //! and `x_lo` its lower end:
 //!
 //! ```text
-//! F_up   = min over {x_lo, x_mid} of (mu_lo(g) I_max^2 / 2 - K x)
-//! F_down = K x_mid
+//! F_up   = min over {x_lo, x_mid} of (mu_lo(g) I_max^2 / 2 - K x - F0)
+//! F_down = K x_mid + F0
 //! up move:    m c_a D / T^2 + lambda c_v D / T = margin F_up,   m c_a D / T^2 = margin F_down
 //! down move:  m c_a D / T^2 = margin F_up,   m c_a D / T^2 + lambda c_v D / T = margin F_down
 //! T = max(the roots, sqrt(c_a D / a_cfg), T_min)
@@ -115,17 +115,17 @@ impl Config {
     pub fn force_budget_n(&self, x0_m: f32, x1_m: f32) -> (f32, f32) {
         let p = &self.plant;
         let i2 = 0.5 * self.settings.current_max_a * self.settings.current_max_a;
-        let up = |x: f32| self.envelope.mu_lo(p.gap_m(x)) * i2 - p.spring_n_per_m * x;
+        let up = |x: f32| self.envelope.mu_lo(p.gap_m(x)) * i2 - p.spring_force_n(x);
         let x_lo = math::min(x0_m, x1_m);
         let x_mid = 0.5 * (x0_m + x1_m);
-        (math::min(up(x_lo), up(x_mid)), p.spring_n_per_m * x_mid)
+        (math::min(up(x_lo), up(x_mid)), p.spring_force_n(x_mid))
     }
 
     /// Duration \[s\] of a rest-to-rest move over `distance_m` with the force budget
     /// `force_n`: the root of `m c_a D / T^2 + lambda c_v D / T = margin F` (without the
     /// friction term when friction helps).
-    fn duration_for(&self, distance_m: f32, force_n: f32, friction: bool) -> f32 {
-        let f = self.settings.margin * force_n;
+    fn duration_for(&self, distance_m: f32, force_n: f32, friction: bool, margin: f32) -> f32 {
+        let f = margin * force_n;
         if f <= 0.0 {
             return f32::INFINITY;
         }
@@ -140,16 +140,36 @@ impl Config {
         1.0 / y
     }
 
+    /// The fastest smooth move from `x0_m` to `x1_m` the limits allow \[s\]: the planner's
+    /// own quintic with the whole force budget ([`Config::force_budget_n`] at margin 1: the
+    /// magnet at the current limit on the weakest plant one way, the spring alone the
+    /// other), friction included, no lower bound on the duration. A move must be smooth to
+    /// be followed at all: the coil turns the force around only as fast as its inductance
+    /// lets the current change, so a bang-bang move is not one any actuator can make.
+    #[must_use]
+    pub fn minimum_time_s(&self, x0_m: f32, x1_m: f32) -> f32 {
+        self.duration_with_margin(x0_m, x1_m, 1.0)
+    }
+
     /// Duration \[s\] of a move from `x0_m` to `x1_m` (before the minimum duration).
     #[must_use]
     pub fn duration_s(&self, x0_m: f32, x1_m: f32) -> f32 {
+        let t_cfg =
+            math::sqrt(QUINTIC_PEAK_ACCEL * (x1_m - x0_m).abs() / self.settings.accel_max_mps2);
+        math::max(
+            t_cfg,
+            self.duration_with_margin(x0_m, x1_m, self.settings.margin),
+        )
+    }
+
+    /// Duration \[s\] of a move within `margin` of the force budgets.
+    fn duration_with_margin(&self, x0_m: f32, x1_m: f32, margin: f32) -> f32 {
         let d = (x1_m - x0_m).abs();
         let up = x1_m > x0_m;
         let (f_up, f_down) = self.force_budget_n(x0_m, x1_m);
-        let t_cfg = math::sqrt(QUINTIC_PEAK_ACCEL * d / self.settings.accel_max_mps2);
         math::max(
-            math::max(t_cfg, self.duration_for(d, f_up, up)),
-            self.duration_for(d, f_down, !up),
+            self.duration_for(d, f_up, up, margin),
+            self.duration_for(d, f_down, !up, margin),
         )
     }
 

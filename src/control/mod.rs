@@ -30,6 +30,7 @@
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
+use crate::actuator::{self, Actuator};
 use crate::bridge::{Drive, HBridge};
 use crate::config::{self, Error};
 use crate::law::{self, Law, Reference};
@@ -72,79 +73,53 @@ pub struct Settings {
 
 impl Settings {
     /// The paper's actuator and law at `rate_hz` on a `vbus_v` supply, on the reference
-    /// board; observer bandwidth 2000 rad/s; current trip 16 A, just inside the board's
-    /// +-16.5 A current channel (the paper's law asks for about 21 A at start-up: a
-    /// reproduction of its example needs a wider channel and trip, as the simulator's
-    /// paper scenario sets); bus window 0.5 to 1.25 times the supply.
+    /// board, in the paper's printed convention (for reproducing the paper only: the
+    /// product and the firmware run [`Actuator`]-derived settings in the physical one);
+    /// observer bandwidth 2000 rad/s; current trip 16 A, just inside the board's +-16.5 A
+    /// current channel (the paper's law asks for about 21 A at start-up: a reproduction of
+    /// its example needs a wider channel and trip, as the simulator's paper scenario
+    /// sets); bus window 0.5 to 1.25 times the supply; the sensor and coil detectors of
+    /// the product, but no I^2 t (the paper's law asks for 21 A at start-up) and no
+    /// tracking detector (its step response takes 0.4 s).
     #[must_use]
     pub fn paper(rate_hz: f32, vbus_v: f32) -> Self {
         let plant = Plant::paper();
+        let sense = Calibration::board();
         Self {
             rate_hz,
             plant,
-            sense: Calibration::board(),
+            sense,
             observer: observer::Gains {
                 bandwidth_rad_s: 2_000.0,
                 disturbance: false,
                 model: observer::Model::Nominal,
+                force_scaled_above_a: 0.0,
             },
             law: law::Settings::Paper(law::paper::Gains::paper()),
             limits: Limits::for_stroke(plant.stroke_m, 16.0, 0.5 * vbus_v, 1.25 * vbus_v),
             delay_ticks: 0,
             shaping: None,
-            // The paper's law trips no I^2 t (it asks for 21 A at start-up) and no
-            // tracking error (its step response takes 0.4 s); the sensor and coil checks
-            // stay on.
             monitors: Monitors {
                 thermal: None,
+                stuck: Some(actuator::stuck_detector(&sense.position)),
+                residual: Some(actuator::residual_detector(&sense.current)),
                 tracking: None,
-                ..Monitors::product(12.0)
             },
         }
     }
 
-    /// The product's default: the practical law ([`law::discrete`]) on the paper's
-    /// actuator at `rate_hz` on a `vbus_v` supply, on the reference board, with one sample
-    /// of measurement delay, an extended-state observer and reference shaping; current
-    /// limited to 12 A by the law and tripped at 13.2 A (limit + 10 %); bus window 60 % to
-    /// 125 % of the supply (the law needs under 10 V even at the current limit, so the
-    /// window is about the supply's health, not the law's headroom).
+    /// The product's default ([`Actuator::PRODUCT`], every setting derived from it) at
+    /// `rate_hz` on a `vbus_v` supply: the practical law ([`law::discrete`]) with one
+    /// sample of measurement delay, an extended-state observer, reference shaping and every
+    /// fault detector, in the physical convention.
     ///
-    /// Gains, observer bandwidth and shaping margin are the ones `hil-sim tune` designed
-    /// for the paper's actuator over 10, 20 and 50 kHz (`hil-sim tune`: worst metric over
-    /// the 33 corner plants of each rate at 91 % of its target). The observer bandwidth is 200 rad/s at
-    /// 20 kHz and follows `w = 200 (f / 20 kHz)^(1/5)`: the noise variance of the
-    /// disturbance estimate scales as `Ts w^5`, so this keeps the current ripple it causes
-    /// the same at every rate (174 rad/s at 10 kHz, 240 rad/s at 50 kHz).
-    #[must_use]
-    pub fn practical(rate_hz: f32, vbus_v: f32) -> Self {
-        let plant = Plant::paper();
-        let gains = law::discrete::Gains::default_gains();
-        Self {
-            rate_hz,
-            plant,
-            sense: Calibration::board(),
-            observer: observer::Gains {
-                bandwidth_rad_s: 200.0 * libm::powf(rate_hz / 20_000.0, 0.2),
-                disturbance: true,
-                model: observer::Model::Robust,
-            },
-            law: law::Settings::Discrete(gains),
-            limits: Limits::for_stroke(
-                plant.stroke_m,
-                1.1 * gains.current_max_a,
-                0.6 * vbus_v,
-                1.25 * vbus_v,
-            ),
-            delay_ticks: 1,
-            shaping: Some(trajectory::Settings {
-                accel_max_mps2: 20.0,
-                current_max_a: gains.current_max_a,
-                margin: 0.7,
-                duration_min_s: 0.02,
-            }),
-            monitors: Monitors::product(gains.current_max_a),
-        }
+    /// # Errors
+    /// A rate or supply the derivation refuses, by name.
+    pub fn practical(rate_hz: f32, vbus_v: f32) -> Result<Self, Error> {
+        Actuator::PRODUCT
+            .with_rate_hz(rate_hz)
+            .with_supply_v(vbus_v)
+            .settings()
     }
 
     /// Validates everything and builds the immutable configuration.
@@ -409,6 +384,7 @@ impl Config {
             i_a: m.i_a,
             r_m: status.reference.x_m,
             r_v_mps: status.reference.v_mps,
+            v_mps: status.estimate.v_mps,
         };
         if let Some(fault) = self.monitors.check(&mut state.monitor, &seen) {
             status.fault = Some(state.supervisor.trip(fault));

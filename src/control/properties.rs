@@ -65,7 +65,7 @@ impl OutputPin for Pin {
 }
 
 fn settings(which: usize, physical_monitors: bool) -> Settings {
-    let mut s = Settings::practical(20_000.0, 24.0);
+    let mut s = Settings::practical(20_000.0, 24.0).unwrap();
     match which {
         0 => {}
         1 => {

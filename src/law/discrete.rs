@@ -9,7 +9,7 @@
 //! ```text
 //! z1 = x - r                       z2 = v - r' + alpha1 z1
 //! a_d = r'' - (alpha1 + alpha2) z2 + (alpha1^2 - 1) z1 - d                       (1)
-//! F_d = m a_d + K x + lambda v                                                   (2)
+//! F_d = m a_d + K x + F0 + lambda v                                              (2)
 //! x3d = min(I_max, sqrt(max(0, 2 F_d / mu(g))))                                  (3)
 //! ```
 //!
@@ -72,7 +72,7 @@
 //! use ema::model::Plant;
 //!
 //! let plant = Plant::paper();
-//! let cfg = discrete::Gains::default_gains().build(&plant, 1.0 / 20_000.0, 0).unwrap();
+//! let cfg = discrete::Gains::new(130.0, 12.0).build(&plant, 1.0 / 20_000.0, 0).unwrap();
 //! // At rest on the 3 mm target with no disturbance estimate, the law asks for the current
 //! // that holds the softest spring with the weakest magnet: sqrt(2 * 108 * 3e-3 / mu_lo).
 //! let input = law::Input {
@@ -89,6 +89,15 @@ use super::{Input, Law, Output};
 use crate::config::{self, Error};
 use crate::math;
 use crate::model::{Convention, Dynamics, Nominal, Plant};
+
+/// Reaching factor of the current loop: its pole sits at `1 - 0.7 L_lo / L` for a coil
+/// of inductance `L`, in `[0.3, 1)` over the bounds (no oscillation, a margin for the
+/// delay's prediction error) \[-\].
+pub const REACH: f32 = 0.7;
+/// Integral gain of the current loop relative to the reaching gain: slow enough to stay
+/// out of the reaching dynamics, fast enough to remove a resistance error within a few
+/// milliseconds \[-\].
+pub const INTEGRAL: f32 = 0.05;
 
 /// Gains of the practical law.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,17 +119,16 @@ pub struct Gains {
 }
 
 impl Gains {
-    /// Default gains, as designed by `hil-sim tune` for the paper's actuator over 10, 20
-    /// and 50 kHz: `alpha1 = alpha2 = 130 1/s` (error poles `s^2 + 260 s + 16901`),
-    /// 12 A, `reach = 0.7`, `integral = 0.05`.
+    /// Gains `alpha1 = alpha2 = alpha_per_s` with the desired current limited to
+    /// `current_max_a`, and the current loop's [`REACH`] and [`INTEGRAL`].
     #[must_use]
-    pub const fn default_gains() -> Self {
+    pub const fn new(alpha_per_s: f32, current_max_a: f32) -> Self {
         Self {
-            alpha1: 130.0,
-            alpha2: 130.0,
-            current_max_a: 12.0,
-            reach: 0.7,
-            integral: 0.05,
+            alpha1: alpha_per_s,
+            alpha2: alpha_per_s,
+            current_max_a,
+            reach: REACH,
+            integral: INTEGRAL,
         }
     }
 
@@ -219,7 +227,7 @@ impl Law for Config {
         let a_d = r.a_mps2 - self.k_sum * z2 + self.k_pos * z1 - input.disturbance_mps2;
         let d = &self.dynamics;
         let f_d =
-            d.mass_kg * a_d + d.spring_n_per_m * input.x_m + d.friction_n_s_per_m * input.v_mps;
+            d.mass_kg * a_d + d.spring_force_n(input.x_m) + d.friction_n_s_per_m * input.v_mps;
         let i_d = math::min(
             math::sqrt(math::max(2.0 * f_d / mu, 0.0)),
             self.gains.current_max_a,
@@ -265,11 +273,7 @@ mod tests {
 
     /// Gains with round numbers for the hand computations: alpha1 = alpha2 = 100.
     fn gains() -> Gains {
-        Gains {
-            alpha1: 100.0,
-            alpha2: 100.0,
-            ..Gains::default_gains()
-        }
+        Gains::new(100.0, 12.0)
     }
 
     fn law(delay: u8) -> Config {
@@ -422,16 +426,16 @@ mod tests {
         let p = Plant::paper();
         let g = Gains {
             reach: 1.5,
-            ..Gains::default_gains()
+            ..Gains::new(130.0, 12.0)
         };
         assert_eq!(g.build(&p, TS, 0).unwrap_err().param, "law.reach");
         let g = Gains {
             alpha1: -1.0,
-            ..Gains::default_gains()
+            ..Gains::new(130.0, 12.0)
         };
         assert_eq!(g.build(&p, TS, 0).unwrap_err().param, "law.alpha1");
         assert_eq!(
-            Gains::default_gains().build(&p, TS, 2).unwrap_err().param,
+            Gains::new(130.0, 12.0).build(&p, TS, 2).unwrap_err().param,
             "delay_ticks"
         );
     }

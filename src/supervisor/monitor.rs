@@ -37,15 +37,22 @@
 //! an inductance below its bound: the current loop, tuned for the bounds, overshoots on
 //! such a coil.
 //!
-//! The motional back-EMF is left out of the prediction: at the speeds of this actuator it
-//! moves the current by less than the noise allowance (about 10 mA per period at 1 mm and
-//! 4 cm/s); it is covered by the noise allowance.
+//! The motional back-EMF `e = s_emf v i mu(g)` (the armature's velocity `v` from the
+//! observer) adds to the applied voltage: `di = k (u + e - R i) / (1 + R k / 2)`. It is
+//! taken with the nominal `mu` and an allowance of [`EMF_SPREAD`] of itself either way
+//! (the surfaces' bounds and the velocity estimate's error): on a fast, small valve it is
+//! as large as the resistive drop, and left out it reads as a coil outside its bounds.
 
 use super::Fault;
 use crate::config::{self, Error};
 use crate::math;
 use crate::model::{Envelope, Plant};
 use crate::sense::Calibration;
+
+/// Relative allowance on the motional back-EMF in the residual: the force coefficient
+/// anywhere in its bounds (at most +-25 % of nominal for +-20 % surfaces) and the
+/// velocity estimate's error during a move \[-\].
+pub const EMF_SPREAD: f32 = 0.5;
 
 /// I^2 t protection of the coil.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,6 +82,17 @@ pub struct Thermal {
 /// reference is static on this time scale (a 20 um error moves a 0.1 kg armature by
 /// nanometres in 0.7 ms). A sensor frozen during a slow move is left to the tracking
 /// detector.
+///
+/// The reading must also have been moving fast when it stopped, the way the reference
+/// travels: it left its last two bands the same way, the last one after less than half the
+/// window (one exit alone can be the converter's noise between two readings). A sensor
+/// that freezes mid-move stops at full speed; an armature that comes to rest ahead of a
+/// short, fast reference (a strong magnet can bring it there first) slows down through its
+/// last bands. An armature at rest that a move sets off lags its
+/// reference by the time the coil needs to build the current that overcomes the spring and
+/// its preload (milliseconds on a valve: longer than any useful window), and during that
+/// lag its reading stays put while the reference runs; it is healthy. A sensor that froze
+/// mid-move is caught; one that froze at rest is left to the tracking detector.
 ///
 /// "No change while the current changes" is not usable as evidence: in closed loop the
 /// controller changes the current precisely to hold the position against a changing
@@ -152,48 +170,6 @@ pub struct Monitors {
 }
 
 impl Monitors {
-    /// Every detector on, with the product's defaults for a current limit `current_max_a`:
-    /// continuous rating 80 % of the limit with 2 A^2 s above it (0.25 s at the limit
-    /// from a cold coil would need 2.6 A^2 s: a limit-long move is fine, a stall is not);
-    /// stuck after 0.7 ms of readings within +-8 codes (about 4 sigma of 1.5 codes of
-    /// noise, 8.7 um on the board) while the reference moved 21 um at 30 mm/s or more (a
-    /// healthy reading leaves the band after at most the band plus two noise excursions,
-    /// 15 um, of motion; 0.6 ms and 18 um tripped on 3 of 300 healthy drawn plants at
-    /// 10 kHz, 0.7 ms and 21 um on none of 600);
-    /// residual noise allowance 8 codes (5.6 sigma of a one-step difference at 1 code of
-    /// noise, 3.8 sigma at 1.5 codes; four in a row in the same direction are needed),
-    /// margin 10 %, evidence for 0.2 ms (4 ticks at 20 kHz, at least 2), jump 0.5 A
-    /// (60 codes on the board), open below 0.2 A,
-    /// gross factor 2, a 16-tick corner bank;
-    /// tracking error 0.5 mm for 50 ms.
-    #[must_use]
-    pub fn product(current_max_a: f32) -> Self {
-        Self {
-            thermal: Some(Thermal {
-                continuous_a: 0.8 * current_max_a,
-                allowance_a2s: 2.0,
-            }),
-            stuck: Some(Stuck {
-                window_s: 0.7e-3,
-                band_codes: 8.0,
-                reference_m: 21e-6,
-            }),
-            residual: Some(Residual {
-                noise_codes: 8.0,
-                margin: 0.1,
-                confirm_s: 0.2e-3,
-                jump_a: 0.5,
-                open_a: 0.2,
-                gross: 2.0,
-                window: 16,
-            }),
-            tracking: Some(Tracking {
-                error_m: 0.5e-3,
-                time_s: 0.05,
-            }),
-        }
-    }
-
     /// Validates and builds the detectors for `plant`, the converters' calibration
     /// `sense`, the sample period `ts_s` and `delay_ticks` of measurement delay.
     ///
@@ -276,6 +252,7 @@ impl Monitors {
             r_nom: r,
             r_lo: r * (1.0 - tol),
             r_hi: r * (1.0 + tol),
+            emf_sign: plant.convention.emf_sign(),
             tracking_ticks,
             delayed: delay_ticks > 0,
         })
@@ -300,6 +277,7 @@ pub struct Config {
     r_nom: f32,
     r_lo: f32,
     r_hi: f32,
+    emf_sign: f32,
     tracking_ticks: u32,
     delayed: bool,
 }
@@ -313,6 +291,11 @@ pub struct MonitorState {
     /// Anchor of the band the reading must leave \[m\].
     x_last: f32,
     x_same_ticks: u16,
+    /// The reading left its last two bands the same way, the last after less than half the
+    /// window: it was moving fast (one exit alone can be two noisy readings).
+    x_moving: bool,
+    /// Direction of the reading's last exit from its band (0 before the first).
+    x_dir: i8,
     r_at_change: f32,
     i_prev: f32,
     /// Average voltage applied by the last two drives, newest first, and whether the
@@ -338,6 +321,8 @@ pub struct MonitorState {
     bank_ticks: u16,
     /// Consecutive steps with the reading below the bank.
     bank_below: u16,
+    /// The back-EMF allowance accumulated by the bank since its anchor \[A\].
+    bank_emf: f32,
     off_track: u32,
     primed: bool,
 }
@@ -363,6 +348,8 @@ pub struct Inputs {
     pub r_m: f32,
     /// Reference velocity \[m/s\].
     pub r_v_mps: f32,
+    /// Estimated velocity \[m/s\] (for the motional back-EMF).
+    pub v_mps: f32,
 }
 
 impl Config {
@@ -405,15 +392,23 @@ impl Config {
     fn stuck(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
         let s = self.monitors.stuck.as_ref()?;
         if (inp.x_m - st.x_last).abs() > self.band_m {
+            let dir = if inp.x_m > st.x_last { 1 } else { -1 };
+            // Fast: out of its band in less than half the window.
+            st.x_moving =
+                2 * u32::from(st.x_same_ticks) < u32::from(self.stuck_ticks) && dir == st.x_dir;
+            st.x_dir = dir;
             st.x_last = inp.x_m;
             st.x_same_ticks = 0;
             st.r_at_change = inp.r_m;
             return None;
         }
         st.x_same_ticks = st.x_same_ticks.saturating_add(1);
-        let fast = inp.r_v_mps.abs() * s.window_s >= s.reference_m;
+        // Fast, the way the reading was moving.
+        let fast = inp.r_v_mps.abs() * s.window_s >= s.reference_m
+            && (inp.r_v_mps > 0.0) == (st.x_dir > 0);
         let moved = (inp.r_m - st.r_at_change).abs() >= s.reference_m && fast;
-        (st.x_same_ticks >= self.stuck_ticks && moved).then_some(Fault::PositionStuck)
+        (st.x_same_ticks >= self.stuck_ticks && moved && st.x_moving)
+            .then_some(Fault::PositionStuck)
     }
 
     fn residual(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
@@ -435,6 +430,10 @@ impl Config {
         }
         let g = self.convention.gap_m(inp.x_m);
         let i0 = st.i_prev;
+        // Applied voltage plus the motional back-EMF, with its allowance.
+        let emf = self.emf_sign * inp.v_mps * i0 * self.nominal.force_coefficient_h_per_m(g);
+        let u = u + emf;
+        let du = EMF_SPREAD * emf.abs();
         // The four corner coils (L_lo or L_hi, R_lo or R_hi): gain and resistance of
         // `di = k (u - R i) / (1 + R k / 2)`, with `k = Ts / L = Ts rho(g) / N^2`.
         let (k_lo, k_hi) = (
@@ -449,13 +448,13 @@ impl Config {
             (gain(k_hi, self.r_hi), self.r_hi),
         ];
         // Folds from +-inf, never NaN: the one-comparison running extremes are exact.
+        // Every gain is positive, so the least change takes the least voltage.
         let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
         for (f, res) in corners {
-            let d = f * (u - res * i0);
-            d_min = math::running_min(d_min, d);
-            d_max = math::running_max(d_max, d);
+            d_min = math::running_min(d_min, f * (u - du - res * i0));
+            d_max = math::running_max(d_max, f * (u + du - res * i0));
         }
-        if let Some(f) = self.bank(r, st, inp.i_a, i0, u, &corners) {
+        if let Some(f) = self.bank(r, st, inp.i_a, i0, u, du * gain(k_hi, self.r_lo), &corners) {
             return Some(f);
         }
         let widen = r.margin * math::running_max(d_min.abs(), d_max.abs()) + self.noise_a;
@@ -523,7 +522,9 @@ impl Config {
     }
 
     /// The corner bank (see the module documentation): advances the four corner coils by
-    /// one period under `u` and compares the reading with their envelope.
+    /// one period under `u` and compares the reading with their envelope, widened by the
+    /// back-EMF allowance `emf_a` of each period since the anchor.
+    #[allow(clippy::too_many_arguments)]
     fn bank(
         &self,
         r: &Residual,
@@ -531,6 +532,7 @@ impl Config {
         i_a: f32,
         i0: f32,
         u: f32,
+        emf_a: f32,
         corners: &[(f32, f32); 4],
     ) -> Option<Fault> {
         if st.bank_ticks == 0 || st.bank_ticks >= r.window {
@@ -538,8 +540,10 @@ impl Config {
             st.bank_anchor = i0;
             st.bank_ticks = 0;
             st.bank_below = 0;
+            st.bank_emf = 0.0;
         }
         st.bank_ticks = st.bank_ticks.saturating_add(1);
+        st.bank_emf += emf_a;
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for (c, &(f, res)) in st.bank.iter_mut().zip(corners) {
             *c += f * (u - res * *c);
@@ -548,7 +552,7 @@ impl Config {
         }
         // Neither distance is NaN (the folds skip NaN, the anchor is a finite reading).
         let spread = math::running_max((hi - st.bank_anchor).abs(), (lo - st.bank_anchor).abs());
-        let widen = r.margin * spread + self.noise_a;
+        let widen = r.margin * spread + self.noise_a + st.bank_emf;
         // Below the bank in the direction the coil is driven: the whole bank moved away
         // from the anchor (all corners on one side) and the reading lags all of them.
         let rising = lo > st.bank_anchor;
@@ -615,7 +619,10 @@ mod tests {
     const TS: f32 = 1.0 / 20_000.0;
 
     fn cfg(delay: u8) -> Config {
-        Monitors::product(12.0)
+        crate::actuator::Actuator::PRODUCT
+            .settings()
+            .unwrap()
+            .monitors
             .build(&Plant::paper(), &Calibration::board(), TS, delay)
             .unwrap()
     }
@@ -639,6 +646,7 @@ mod tests {
                 i_a: sensor(i),
                 r_m: g,
                 r_v_mps: 0.0,
+                v_mps: 0.0,
             };
             if let Some(f) = c.check(&mut st, &inp) {
                 return Some(f);
@@ -692,6 +700,7 @@ mod tests {
                         i_a: i_start + pace * (i - i_start),
                         r_m: g,
                         r_v_mps: 0.0,
+                        v_mps: 0.0,
                     };
                     if let Some(f) = c.check(&mut st, &inp) {
                         found = Some((f, k));
@@ -721,6 +730,7 @@ mod tests {
                 i_a: i,
                 r_m: 3e-3,
                 r_v_mps: 0.0,
+                v_mps: 0.0,
             };
             if let Some(f) = c.check(&mut st, &inp) {
                 found = Some((f, k));
@@ -743,6 +753,7 @@ mod tests {
             i_a,
             r_m: 3e-3,
             r_v_mps: 0.0,
+            v_mps: 0.0,
         };
         // Holding 6 A at 2.4 V; the reading steps by +2.5 A and stays offset.
         assert_eq!(c.check(&mut st, &inp(6.0)), None);
@@ -759,13 +770,21 @@ mod tests {
         let c = cfg(0);
         let mut st = MonitorState::default();
         let mut found = None;
-        for k in 0..40 {
+        let reference = |k: i32| 2e-3 + k as f32 * 2e-6; // moving at 4 cm/s
+        for k in 0..60 {
+            // Following the reference for 20 ticks, then frozen at 40 um with +-2 codes of
+            // converter noise.
+            let x_m = if k < 20 {
+                reference(k)
+            } else {
+                reference(20) + ((k * 7) % 5) as f32 * 1.085e-6 - 2.17e-6
+            };
             let inp = Inputs {
-                // Frozen output plus +-2 codes of converter noise.
-                x_m: 2e-3 + ((k * 7) % 5) as f32 * 1.085e-6 - 2.17e-6,
+                x_m,
                 i_a: 5.0,
-                r_m: 2e-3 + k as f32 * 2e-6, // reference moving at 4 cm/s
+                r_m: reference(k),
                 r_v_mps: 0.04,
+                v_mps: 0.04,
             };
             if let Some(f) = c.check(&mut st, &inp) {
                 found = Some((f, k));
@@ -773,9 +792,33 @@ mod tests {
             }
             c.record_drive(&mut st, 2.0, false);
         }
-        // The 14th reading within the band (0.7 ms), when the reference has moved
-        // 28 um > 21 um.
-        assert_eq!(found, Some((Fault::PositionStuck, 14)));
+        // The 14th reading within the band (0.7 ms) of the last anchor: the moving reading
+        // renews it at most 4 ticks (8 um < the 8.7 um band) before the freeze, the first
+        // frozen readings (the last step plus noise) at most 2 ticks after.
+        let (fault, k) = found.unwrap();
+        assert_eq!(fault, Fault::PositionStuck);
+        assert!((20 + 14 - 4..=20 + 14 + 2).contains(&k), "{k}");
+
+        // The same frozen reading from rest (an armature that a move sets off lags while
+        // the coil builds its current): healthy, no fault; also when the converter's noise
+        // takes two readings out of each other's band, one up, then one down.
+        let mut st = MonitorState::default();
+        for k in 0..60 {
+            let noise_codes = match k {
+                3 => 4.5,
+                5 => -4.5,
+                _ => ((k * 7) % 5) as f32 - 2.0,
+            };
+            let inp = Inputs {
+                x_m: 2e-3 + noise_codes * 1.085e-6,
+                i_a: 5.0,
+                r_m: reference(k),
+                r_v_mps: 0.04,
+                v_mps: 0.0,
+            };
+            assert_eq!(c.check(&mut st, &inp), None, "tick {k}");
+            c.record_drive(&mut st, 2.0, false);
+        }
         // At rest nothing is expected to move: no fault.
         let mut st = MonitorState::default();
         for _ in 0..1000 {
@@ -784,6 +827,7 @@ mod tests {
                 i_a: 5.0,
                 r_m: 2e-3,
                 r_v_mps: 0.0,
+                v_mps: 0.0,
             };
             assert_eq!(c.check(&mut st, &inp), None);
             c.record_drive(&mut st, 2.0, false);
@@ -791,32 +835,41 @@ mod tests {
     }
 
     #[test]
-    fn i2t_allows_a_move_and_trips_a_stall() {
+    fn i2t_allows_the_rating_and_trips_the_peak_after_its_time() {
         let c = cfg(0);
+        let thermal = c.monitors.thermal.unwrap();
+        // The product's coil: rated 12 A, 13.2 A for 0.1 s.
+        assert_eq!(thermal.continuous_a, 12.0);
         let mut st = MonitorState::default();
         let at = |i_a| Inputs {
             x_m: 2e-3,
             i_a,
             r_m: 2e-3,
             r_v_mps: 0.0,
+            v_mps: 0.0,
         };
-        c.check(&mut st, &at(12.0));
-        // 0.1 s at 12 A: (144 - 92.16) * 0.1 = 5.2 A^2 s > 2: trips after 2/51.84 = 38.6 ms.
+        // At the peak current the allowance (13.2^2 - 12^2) 0.1 s lasts 0.1 s: 2000 ticks.
         let mut tripped = None;
-        for k in 0..2000 {
-            if let Some(f) = c.check(&mut st, &at(12.0)) {
+        for k in 0..4000 {
+            if let Some(f) = c.check(&mut st, &at(13.2)) {
                 tripped = Some((f, k));
                 break;
             }
         }
         let (f, k) = tripped.unwrap();
         assert_eq!(f, Fault::OverCurrentI2t);
-        assert!((770..=775).contains(&k), "{k}");
-        // Below the rating it cools down to zero.
+        assert!((1995..=2005).contains(&k), "{k}");
+        // At the rating it never trips; below it, it cools down to zero.
         let mut st = MonitorState::default();
-        c.check(&mut st, &at(9.0));
+        for _ in 0..100 {
+            c.check(&mut st, &at(13.0));
+        }
+        assert!(st.i2t_a2s > 0.0);
         for _ in 0..100_000 {
-            assert_eq!(c.check(&mut st, &at(9.0)), None);
+            assert_eq!(c.check(&mut st, &at(12.0)), None);
+        }
+        for _ in 0..100_000 {
+            assert_eq!(c.check(&mut st, &at(11.0)), None);
         }
         assert_eq!(st.i2t_a2s, 0.0);
     }
@@ -830,6 +883,7 @@ mod tests {
             i_a: 1.0,
             r_m: 3e-3,
             r_v_mps: 0.0,
+            v_mps: 0.0,
         };
         c.check(&mut st, &off);
         let mut n = 0;
@@ -852,13 +906,19 @@ mod tests {
 
     #[test]
     fn bad_monitor_settings_are_named() {
-        let mut m = Monitors::product(12.0);
+        let mut m = crate::actuator::Actuator::PRODUCT
+            .settings()
+            .unwrap()
+            .monitors;
         m.residual.as_mut().unwrap().gross = 0.5;
         let e = m
             .build(&Plant::paper(), &Calibration::board(), TS, 0)
             .unwrap_err();
         assert_eq!(e.param, "monitors.residual.gross");
-        let mut m = Monitors::product(12.0);
+        let mut m = crate::actuator::Actuator::PRODUCT
+            .settings()
+            .unwrap()
+            .monitors;
         m.tracking.as_mut().unwrap().time_s = 0.0;
         let e = m
             .build(&Plant::paper(), &Calibration::board(), TS, 0)

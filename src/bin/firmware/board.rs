@@ -30,7 +30,7 @@
 
 use ema::config;
 use ema::control::Settings;
-use ema::sense::{Calibration, CURRENT_ZERO_CODE};
+use ema::sense::CURRENT_ZERO_CODE;
 
 /// Crystal \[Hz\].
 pub const HSE_HZ: u32 = 8_000_000;
@@ -160,12 +160,10 @@ pub fn zero_plausible(mean_code: f32, spread_codes: u16) -> bool {
 /// # Errors
 /// A zero outside the converter range.
 pub fn settings(current_zero_code: Option<f32>) -> Result<Settings, config::Error> {
-    let mut s = Settings::practical(CONTROL_RATE_HZ as f32, VBUS_NOMINAL_V);
-    let board = Calibration::board();
-    s.sense = match current_zero_code {
-        Some(code) => board.with_current_zero(code)?,
-        None => board,
-    };
+    let mut s = Settings::practical(CONTROL_RATE_HZ as f32, VBUS_NOMINAL_V)?;
+    if let Some(code) = current_zero_code {
+        s.sense = s.sense.with_current_zero(code)?;
+    }
     Ok(s)
 }
 

@@ -1,0 +1,855 @@
+//! An actuator described from its datasheet and a bench, and every controller setting
+//! derived from it.
+//!
+//! A user brings an actuator this product has never seen. What they can write down is
+//! short ([`Actuator`], about twenty numbers: the moving mass, the spring, the coil, the
+//! magnetic circuit, the stroke, the ratings, the supply, the board's sensor ranges and the
+//! interrupt rate); everything the controller needs ([`crate::control::Settings`]) follows
+//! from it in [`Actuator::settings`], in one place. Nothing there is a number tuned on one
+//! actuator: every gain, threshold and limit is built from the actuator's own time scales
+//! ([`TimeScales`]) and the converters' resolution, and each rule says why.
+//!
+//! The position convention is the physical one ([`Convention::Physical`]): `x` is the
+//! stroke from the open end stop, where the spring holds the armature when the coil is
+//! off; the airgap is `residual + stroke - x` and the magnet pulls along `+x`, closing it.
+//!
+//! ## The magnetic circuit, two ways
+//!
+//! * **Geometry** ([`Magnetics::Geometry`]): a pole face `a x b`, the number of equal
+//!   airgaps in series, the paper's fringing growth `S(g) = (a + k g)(b + k g)` and the
+//!   iron path's reluctance.
+//! * **Two inductances** ([`Magnetics::Inductance`]), as measured on a bench with an LCR
+//!   meter at the two end stops: with `L(g) = N^2 / (rho_x g + rho_0)` the two readings give
+//!   `rho_x` and `rho_0` exactly; the airgap is then modelled as one gap of constant surface
+//!   `S = 1 / (mu0 rho_x)`.
+//!
+//! Either way the airgap surface is the paper's bounded uncertainty: real actuators have
+//! surfaces in `[(1 - s) min S, (1 + s) max S]` over the stroke, `s` the surface
+//! tolerance. The controller's lower bound goes further down where it must: the paper
+//! builds its force bound with the surface held constant, but the force of a surface that
+//! grows with the gap is weaker ([`energy_consistent_share`]), and `mu_lo` has to hold
+//! for it too.
+//!
+//! ## Derived settings and why
+//!
+//! | setting | rule |
+//! |---|---|
+//! | law current limit | the rated current less the ripple allowance (2 % of it): the coil never carries more than its rating |
+//! | current trip | the peak current; the current channel must read it with 5 % to spare |
+//! | I^2 t | continuous rating = rated current; allowance `(I_peak^2 - I_rated^2) t_peak` |
+//! | bus window | 60 % to 125 % of the supply |
+//! | position window | the stroke with 10 % on either side |
+//! | backstepping `alpha1 = alpha2` | tuned ([`Tuning`]); by default [`DEFAULT_ALPHA_PER_W`] times the mechanical frequency [`TimeScales::mechanical_rad_s`] |
+//! | observer bandwidth | tuned; by default [`DEFAULT_OBSERVER_PER_ALPHA`] times `alpha` |
+//! | disturbance model | tuned: constant, or following the magnet's force above [`FORCE_SCALED_SHARE`] of the current limit (see [`crate::observer`]); by default following |
+//! | shaping margin | tuned; by default [`DEFAULT_MARGIN`] |
+//! | shaping acceleration cap | the force authority at the rated current ([`TimeScales::authority_mps2`]) |
+//! | shortest move | `2.6 / alpha`: the error poles are `-alpha +- j`, and a step of the reference settles to 2 % in about `4 / alpha`; a shorter move would only be rounded off by the loop |
+//! | stuck-sensor band and travel | [`STUCK_BAND_CODES`] position codes (about 4 sigma of the converter's noise) and [`STUCK_TRAVEL_BANDS`] bands of reference travel within [`STUCK_WINDOW_S`]: the sensor's own resolution ([`stuck_detector`]) |
+//! | residual noise, jump, open | 8, 62 and 25 current codes: the current channel's own resolution ([`residual_detector`]) |
+//! | tracking error | 1/8 of the stroke, for a quarter of the settling target |
+//! | a move's settling target | the paper's 0.2 s, or 1.5 times the fastest smooth move the limits allow ([`crate::trajectory::Config::minimum_time_s`]), whichever is longer |
+//!
+//! ```
+//! use ema::actuator::Actuator;
+//!
+//! let product = Actuator::PRODUCT;
+//! let settings = product.settings().unwrap();
+//! // The physical convention: the airgap at the open stop is the residual gap plus the stroke.
+//! let gap = settings.plant.gap_m(0.0);
+//! assert!((gap - 4.5e-3).abs() < 1e-9);
+//! settings.build().unwrap();
+//!
+//! // A refusal names the field of the actuator file and its value.
+//! let mut bad = Actuator::PRODUCT;
+//! bad.coil.peak_current_a = 5.0;
+//! let e = bad.settings().unwrap_err();
+//! assert_eq!(e.param, "coil.peak_current_a");
+//! ```
+
+use crate::config::{self, Error, Reason};
+use crate::control::Settings;
+use crate::law;
+use crate::math;
+use crate::model::{self, Bounds, Convention, Fringing, Plant, Tolerance, MU0_H_PER_M};
+use crate::observer;
+use crate::sense::{Calibration, Channel, ADC_MAX_CODE, RAIL_MARGIN_CODES};
+use crate::supervisor::monitor::{Monitors, Residual, Stuck, Thermal, Tracking};
+use crate::supervisor::Limits;
+use crate::trajectory;
+
+/// The armature, its spring and its stroke.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mechanics {
+    /// Moving mass \[kg\].
+    pub mass_kg: f32,
+    /// Spring rate \[N/m\].
+    pub spring_n_per_m: f32,
+    /// Spring force at the open stop (`x = 0`) \[N\].
+    #[serde(default)]
+    pub preload_n: f32,
+    /// Viscous friction, an estimate \[N s/m\].
+    pub friction_n_s_per_m: f32,
+    /// Travel between the end stops \[m\].
+    pub stroke_m: f32,
+    /// Airgap left at the closed stop (`x = stroke`) \[m\].
+    pub residual_gap_m: f32,
+}
+
+/// The coil and its ratings.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Coil {
+    /// Resistance at the operating temperature \[ohm\].
+    pub resistance_ohm: f32,
+    /// Turns \[-\].
+    pub turns: f32,
+    /// Continuous current rating \[A\].
+    pub rated_current_a: f32,
+    /// Largest current the coil and the driver tolerate; the trip level \[A\].
+    pub peak_current_a: f32,
+    /// How long the coil may carry the peak current from its rating \[s\].
+    #[serde(default = "default_peak_time_s")]
+    pub peak_time_s: f32,
+}
+
+const fn one() -> f32 {
+    1.0
+}
+
+const fn default_peak_time_s() -> f32 {
+    DEFAULT_PEAK_TIME_S
+}
+
+/// Default of [`Coil::peak_time_s`] \[s\].
+pub const DEFAULT_PEAK_TIME_S: f32 = 0.1;
+
+/// The magnetic circuit: from its geometry, or from two inductance readings.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Magnetics {
+    /// Pole geometry: `S(g) = c (a + k g)(b + k g)` for each gap.
+    Geometry {
+        /// Equal airgaps in series \[-\].
+        gaps: f32,
+        /// Pole side `a` \[m\].
+        pole_a_m: f32,
+        /// Pole side `b` \[m\].
+        pole_b_m: f32,
+        /// Fringing coefficient `c >= 1`: the paper's weighting of the pole face \[-\].
+        #[serde(default = "one")]
+        fringing_coefficient: f32,
+        /// Growth of each pole side per metre of gap by fringing, `k` (the paper's
+        /// rectangular-pole formula has 1) \[-\].
+        #[serde(default = "one")]
+        fringing_spread: f32,
+        /// Reluctance of the iron path `rho_0` \[1/H\].
+        iron_reluctance_per_h: f32,
+    },
+    /// Inductance measured at the two end stops.
+    Inductance {
+        /// At the open stop (`x = 0`, largest gap) \[H\].
+        open_h: f32,
+        /// At the closed stop (`x = stroke`, the residual gap) \[H\].
+        closed_h: f32,
+    },
+}
+
+/// The board: supply, interrupt rate and the sensors' ranges.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Board {
+    /// Supply (bus) voltage \[V\].
+    pub supply_v: f32,
+    /// Control interrupt rate, one tick per PWM period \[Hz\].
+    pub rate_hz: f32,
+    /// Travel the position sensor maps onto 90 % of the converter's range (5 % to 95 %)
+    /// \[m\]; at least the stroke.
+    pub position_span_m: f32,
+    /// Full scale of the bidirectional current channel, `+-` this \[A\].
+    pub current_full_scale_a: f32,
+    /// Bus voltage at the converter's full scale \[V\].
+    pub vbus_full_scale_v: f32,
+}
+
+/// How far the real actuator may be from the file: the controller's uncertainty set.
+/// Every field has a default ([`Tolerances::default`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Tolerances {
+    /// Airgap surface (flux fringing), relative \[-\].
+    pub surface: f32,
+    /// Moving mass, relative \[-\].
+    pub mass: f32,
+    /// Spring rate and preload, relative \[-\].
+    pub spring: f32,
+    /// Friction, relative \[-\].
+    pub friction: f32,
+    /// Coil resistance (temperature), relative \[-\].
+    pub resistance: f32,
+}
+
+impl Default for Tolerances {
+    /// Surfaces +-20 %, mass +-10 %, spring +-10 %, friction +-50 %, resistance +-20 %.
+    fn default() -> Self {
+        Self {
+            surface: 0.2,
+            mass: 0.1,
+            spring: 0.1,
+            friction: 0.5,
+            resistance: 0.2,
+        }
+    }
+}
+
+/// What `hil-sim tune` chose for this actuator (a tuned file carries it).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tuning {
+    /// Backstepping gains `alpha1 = alpha2` \[1/s\].
+    pub alpha_per_s: f32,
+    /// Observer bandwidth \[rad/s\].
+    pub observer_rad_s: f32,
+    /// Reference-shaping margin, in (0, 1] \[-\].
+    pub margin: f32,
+    /// The observer's disturbance follows the magnet's force above a tenth of the current
+    /// limit ([`FORCE_SCALED_SHARE`], see [`crate::observer`]); otherwise it is constant.
+    pub disturbance_follows_force: bool,
+}
+
+/// An actuator file: what a user writes from a datasheet and a bench.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Actuator {
+    /// Armature, spring, stroke.
+    pub mechanics: Mechanics,
+    /// Coil and ratings.
+    pub coil: Coil,
+    /// Magnetic circuit.
+    pub magnetics: Magnetics,
+    /// Supply, rate and sensors.
+    pub board: Board,
+    /// Uncertainty the controller must cover.
+    #[serde(default)]
+    pub tolerance: Tolerances,
+    /// Gains chosen by `hil-sim tune` (absent in a hand-written file).
+    #[serde(default)]
+    pub tuning: Option<Tuning>,
+}
+
+/// Time scales of an actuator: what every derived gain and threshold is built from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeScales {
+    /// Mechanical natural frequency `sqrt(K / m)` \[rad/s\].
+    pub natural_rad_s: f32,
+    /// Force authority: the magnet's pull at the rated current at mid-stroke on the
+    /// nominal circuit, per unit mass \[m/s^2\].
+    pub authority_mps2: f32,
+    /// `sqrt(authority / stroke)`: how fast the magnet can move the armature across its
+    /// stroke \[rad/s\].
+    pub authority_rad_s: f32,
+    /// Coil time constant `L / R` at the open stop (smallest inductance) \[s\].
+    pub coil_open_s: f32,
+    /// Coil time constant at the closed stop (largest inductance) \[s\].
+    pub coil_closed_s: f32,
+    /// Interrupt period \[s\].
+    pub period_s: f32,
+    /// Position resolution: one converter code \[m\].
+    pub position_code_m: f32,
+}
+
+impl TimeScales {
+    /// The frequency the mechanical loop is designed around: the larger of the natural
+    /// frequency and the authority frequency \[rad/s\]. A soft spring leaves the magnet's
+    /// authority as the scale; a stiff one its own resonance.
+    #[must_use]
+    pub fn mechanical_rad_s(&self) -> f32 {
+        math::max(self.natural_rad_s, self.authority_rad_s)
+    }
+}
+
+/// Default `alpha` per unit of [`TimeScales::mechanical_rad_s`] \[-\].
+pub const DEFAULT_ALPHA_PER_W: f32 = 2.0;
+/// Default observer bandwidth per unit of `alpha` \[-\].
+pub const DEFAULT_OBSERVER_PER_ALPHA: f32 = 1.5;
+/// Default reference-shaping margin \[-\].
+pub const DEFAULT_MARGIN: f32 = 0.7;
+/// Least ratio of the peak (trip) current to the rated current: the trip sits above the
+/// law's limit plus the ripple and the current loop's settling \[-\].
+pub const PEAK_OVER_RATED: f32 = 1.05;
+/// Share of the current limit above which the observer's disturbance follows the magnet
+/// force (see [`crate::observer`]) \[-\].
+pub const FORCE_SCALED_SHARE: f32 = 0.1;
+/// Ripple allowance: the targets allow 2 % of the rated current peak to peak at the
+/// samples, so the law keeps its desired current that far below the rating \[-\].
+pub const RIPPLE_SHARE: f32 = 0.02;
+/// The paper's settling claim, the target for any actuator fast enough to meet it \[s\].
+pub const SETTLING_CLAIM_S: f32 = 0.2;
+/// Settling target of a slower actuator, per unit of its minimum-time move \[-\].
+pub const SETTLING_PER_MINIMUM_MOVE: f32 = 1.5;
+
+/// Converter code at the position sensor's zero (5 % of full scale).
+const POSITION_ZERO_SHARE: f32 = 0.05;
+/// Share of the converter range the position sensor's span covers (5 % to 95 %).
+const POSITION_SPAN_SHARE: f32 = 0.9;
+/// Share of the current channel's full scale the trip level may reach.
+const TRIP_SHARE_OF_FULL_SCALE: f32 = 0.95;
+/// The bus channel must read this much above the over-voltage trip: a supply at 140 % of
+/// its nominal must read as an over-voltage, not as a broken sensor on its rail.
+const VBUS_HEADROOM: f32 = 1.15;
+/// Bus window around the supply.
+const VBUS_MIN_SHARE: f32 = 0.6;
+const VBUS_MAX_SHARE: f32 = 1.25;
+
+impl Actuator {
+    /// The product's default actuator: the paper's (Table I: `m = 0.1 kg`,
+    /// `K = 120 N/m`, `lambda = 5 N s/m`, `R = 0.4 ohm`, `N = 70`, `rho_0 = 630 1/H`, two
+    /// airgaps whose 7 mm x 7 mm pole with a fringing coefficient of 1.16 gives
+    /// `rho_x = 2.8e10 1/(H m)`) in the physical convention: 4 mm of stroke closing onto a
+    /// 0.5 mm residual gap; 12 A rated, 13.2 A peak; 24 V; 20 kHz; the reference board's
+    /// sensors (4 mm position span, +-16.5 A, 72.6 V); the gains `hil-sim tune` chose
+    /// (`hil-sim/actuators/product.tuned.toml`, which a test keeps equal to this).
+    ///
+    /// The surface is constant over the stroke (the paper's weighting coefficient, no
+    /// spread), as in the paper's example.
+    pub const PRODUCT: Actuator = Actuator {
+        mechanics: Mechanics {
+            mass_kg: 0.1,
+            spring_n_per_m: 120.0,
+            preload_n: 0.0,
+            friction_n_s_per_m: 5.0,
+            stroke_m: 4.0e-3,
+            residual_gap_m: 0.5e-3,
+        },
+        coil: Coil {
+            resistance_ohm: 0.4,
+            turns: 70.0,
+            rated_current_a: 12.0,
+            peak_current_a: 13.2,
+            peak_time_s: DEFAULT_PEAK_TIME_S,
+        },
+        magnetics: Magnetics::Geometry {
+            gaps: 2.0,
+            pole_a_m: 7.0e-3,
+            pole_b_m: 7.0e-3,
+            fringing_coefficient: 1.16,
+            fringing_spread: 0.0,
+            iron_reluctance_per_h: 630.0,
+        },
+        board: Board {
+            supply_v: 24.0,
+            rate_hz: 20_000.0,
+            position_span_m: 4.0e-3,
+            current_full_scale_a: 16.5,
+            vbus_full_scale_v: 72.6,
+        },
+        tolerance: Tolerances {
+            surface: 0.2,
+            mass: 0.1,
+            spring: 0.1,
+            friction: 0.5,
+            resistance: 0.2,
+        },
+        tuning: Some(Tuning {
+            alpha_per_s: 139.0,
+            observer_rad_s: 139.0,
+            margin: 0.7,
+            disturbance_follows_force: false,
+        }),
+    };
+
+    /// The same actuator at another interrupt rate \[Hz\], with the same gains and
+    /// observer bandwidth (in rad/s). (Scaling the bandwidth with the rate, as
+    /// `(f / f0)^(1/5)` to hold the disturbance estimate's noise variance, `Ts w^5`,
+    /// constant, made the product's current ripple worse at the higher rates: the ripple
+    /// at the samples follows the velocity estimate as much as the disturbance.)
+    #[must_use]
+    pub fn with_rate_hz(mut self, rate_hz: f32) -> Self {
+        self.board.rate_hz = rate_hz;
+        self
+    }
+
+    /// The same actuator on another supply \[V\]; the bus channel's full scale grows to
+    /// twice the supply where the board's would clip an over-voltage.
+    #[must_use]
+    pub fn with_supply_v(mut self, supply_v: f32) -> Self {
+        self.board.supply_v = supply_v;
+        self.board.vbus_full_scale_v = math::max(self.board.vbus_full_scale_v, 2.0 * supply_v);
+        self
+    }
+
+    /// Checks every field of the file.
+    ///
+    /// # Errors
+    /// The first field that is missing a physical value, by its name in the file.
+    pub fn validate(&self) -> Result<(), Error> {
+        let m = &self.mechanics;
+        config::positive("mechanics.mass_kg", m.mass_kg)?;
+        config::at_least("mechanics.spring_n_per_m", m.spring_n_per_m, 0.0)?;
+        config::at_least("mechanics.preload_n", m.preload_n, 0.0)?;
+        config::at_least("mechanics.friction_n_s_per_m", m.friction_n_s_per_m, 0.0)?;
+        config::positive("mechanics.stroke_m", m.stroke_m)?;
+        config::positive("mechanics.residual_gap_m", m.residual_gap_m)?;
+        let c = &self.coil;
+        config::positive("coil.resistance_ohm", c.resistance_ohm)?;
+        config::at_least("coil.turns", c.turns, 1.0)?;
+        config::positive("coil.rated_current_a", c.rated_current_a)?;
+        config::at_least(
+            "coil.peak_current_a",
+            c.peak_current_a,
+            PEAK_OVER_RATED * c.rated_current_a,
+        )?;
+        config::positive("coil.peak_time_s", c.peak_time_s)?;
+        match self.magnetics {
+            Magnetics::Geometry {
+                gaps,
+                pole_a_m,
+                pole_b_m,
+                fringing_coefficient,
+                fringing_spread,
+                iron_reluctance_per_h,
+            } => {
+                config::at_least("magnetics.geometry.gaps", gaps, 1.0)?;
+                config::positive("magnetics.geometry.pole_a_m", pole_a_m)?;
+                config::positive("magnetics.geometry.pole_b_m", pole_b_m)?;
+                config::at_least(
+                    "magnetics.geometry.fringing_coefficient",
+                    fringing_coefficient,
+                    1.0,
+                )?;
+                config::at_least("magnetics.geometry.fringing_spread", fringing_spread, 0.0)?;
+                config::positive(
+                    "magnetics.geometry.iron_reluctance_per_h",
+                    iron_reluctance_per_h,
+                )?;
+            }
+            Magnetics::Inductance { open_h, closed_h } => {
+                config::positive("magnetics.inductance.open_h", open_h)?;
+                config::positive("magnetics.inductance.closed_h", closed_h)?;
+                config::ordered(
+                    "magnetics.inductance.open_h",
+                    open_h,
+                    "magnetics.inductance.closed_h",
+                    closed_h,
+                )?;
+            }
+        }
+        let b = &self.board;
+        config::positive("board.supply_v", b.supply_v)?;
+        config::positive("board.rate_hz", b.rate_hz)?;
+        config::at_least("board.position_span_m", b.position_span_m, m.stroke_m)?;
+        let least_fs = c.peak_current_a / TRIP_SHARE_OF_FULL_SCALE;
+        config::at_least(
+            "board.current_full_scale_a",
+            b.current_full_scale_a,
+            least_fs,
+        )?;
+        let least_vbus = VBUS_HEADROOM * VBUS_MAX_SHARE * b.supply_v;
+        config::at_least("board.vbus_full_scale_v", b.vbus_full_scale_v, least_vbus)?;
+        let t = &self.tolerance;
+        let below_one = 1.0 - f32::EPSILON;
+        config::within("tolerance.surface", t.surface, 0.0, below_one)?;
+        config::within("tolerance.mass", t.mass, 0.0, below_one)?;
+        config::within("tolerance.spring", t.spring, 0.0, below_one)?;
+        config::within("tolerance.friction", t.friction, 0.0, below_one)?;
+        config::within("tolerance.resistance", t.resistance, 0.0, below_one)?;
+        if let Some(t) = &self.tuning {
+            config::positive("tuning.alpha_per_s", t.alpha_per_s)?;
+            config::positive("tuning.observer_rad_s", t.observer_rad_s)?;
+            config::within("tuning.margin", t.margin, f32::MIN_POSITIVE, 1.0)?;
+        }
+        Ok(())
+    }
+
+    /// The actuator as the controller's model knows it (physical convention, nominal
+    /// values, surface bounds, tolerances).
+    ///
+    /// # Errors
+    /// As [`Actuator::validate`], and a circuit whose two inductances imply a negative
+    /// iron reluctance (named `magnetics.inductance.closed_h`).
+    pub fn plant(&self) -> Result<Plant, Error> {
+        self.validate()?;
+        let m = &self.mechanics;
+        let convention = Convention::Physical {
+            gap_at_zero_m: m.residual_gap_m + m.stroke_m,
+        };
+        let magnetics = match self.magnetics {
+            Magnetics::Geometry {
+                gaps,
+                pole_a_m,
+                pole_b_m,
+                fringing_coefficient,
+                fringing_spread,
+                iron_reluctance_per_h,
+            } => model::Magnetics {
+                turns: self.coil.turns,
+                rho0_per_h: iron_reluctance_per_h,
+                gaps,
+                fringing: if fringing_spread == 0.0 {
+                    Fringing::Coefficient {
+                        alpha: fringing_coefficient,
+                        pole_m2: pole_a_m * pole_b_m,
+                    }
+                } else {
+                    // c (a + k g)(b + k g) = (a' + k' g)(b' + k' g) with every length
+                    // scaled by sqrt(c).
+                    let r = math::sqrt(fringing_coefficient);
+                    Fringing::Rectangular {
+                        a_m: r * pole_a_m,
+                        b_m: r * pole_b_m,
+                        spread: r * fringing_spread,
+                    }
+                },
+            },
+            Magnetics::Inductance { open_h, closed_h } => {
+                // 1/L = (rho_x g + rho_0) / N^2 at the two gaps.
+                let n2 = self.coil.turns * self.coil.turns;
+                let (g_open, g_closed) = (m.residual_gap_m + m.stroke_m, m.residual_gap_m);
+                let rho_x = n2 * (1.0 / open_h - 1.0 / closed_h) / (g_open - g_closed);
+                let rho0 = n2 / closed_h - rho_x * g_closed;
+                if rho0.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+                    return Err(Error {
+                        param: "magnetics.inductance.closed_h",
+                        value: closed_h,
+                        reason: Reason::Derived {
+                            what: "iron reluctance rho_0 [1/H]",
+                            derived: rho0,
+                        },
+                    });
+                }
+                model::Magnetics {
+                    turns: self.coil.turns,
+                    rho0_per_h: rho0,
+                    gaps: 1.0,
+                    fringing: Fringing::Coefficient {
+                        alpha: 1.0,
+                        pole_m2: 1.0 / (MU0_H_PER_M * rho_x),
+                    },
+                }
+            }
+        };
+        let t = &self.tolerance;
+        let convention_gaps = convention.gap_range_m(m.stroke_m);
+        let physical = Bounds::around(&magnetics.fringing, convention_gaps, t.surface, t.surface);
+        let plant = Plant {
+            mass_kg: m.mass_kg,
+            spring_n_per_m: m.spring_n_per_m,
+            preload_n: m.preload_n,
+            friction_n_s_per_m: m.friction_n_s_per_m,
+            resistance_ohm: self.coil.resistance_ohm,
+            magnetics,
+            bounds: Bounds {
+                s_lo_m2: physical.s_lo_m2
+                    * energy_consistent_share(&magnetics, &physical, convention_gaps),
+                s_hi_m2: physical.s_hi_m2,
+            },
+            convention,
+            stroke_m: m.stroke_m,
+            tolerance: Tolerance {
+                surface: t.surface,
+                mass: t.mass,
+                spring: t.spring,
+                friction: t.friction,
+                resistance: t.resistance,
+            },
+        };
+        plant.validate()?;
+        Ok(plant)
+    }
+
+    /// The converters' calibration: position zero at 5 % of full scale and the span over
+    /// 90 %, the current channel bidirectional about mid-scale, the bus from zero; codes
+    /// within 1 % of a rail read as a broken sensor.
+    #[must_use]
+    pub fn calibration(&self) -> Calibration {
+        let full = f32::from(ADC_MAX_CODE) + 1.0;
+        let b = &self.board;
+        let window_lo = RAIL_MARGIN_CODES;
+        let window_hi = ADC_MAX_CODE - RAIL_MARGIN_CODES;
+        Calibration {
+            position: Channel {
+                offset_code: POSITION_ZERO_SHARE * full,
+                scale: b.position_span_m / (POSITION_SPAN_SHARE * full),
+                min_code: window_lo,
+                max_code: window_hi,
+            },
+            current: Channel {
+                offset_code: 0.5 * full,
+                scale: b.current_full_scale_a / (0.5 * full),
+                min_code: window_lo,
+                max_code: window_hi,
+            },
+            vbus: Channel {
+                offset_code: 0.0,
+                scale: b.vbus_full_scale_v / full,
+                min_code: 0,
+                max_code: window_hi,
+            },
+        }
+    }
+
+    /// The actuator's time scales.
+    ///
+    /// # Errors
+    /// As [`Actuator::plant`].
+    pub fn time_scales(&self) -> Result<TimeScales, Error> {
+        let plant = self.plant()?;
+        let m = &self.mechanics;
+        let nominal = plant.envelope()?.nominal();
+        let g_mid = plant.gap_m(0.5 * m.stroke_m);
+        let i = self.coil.rated_current_a;
+        let authority = 0.5 * nominal.force_coefficient_h_per_m(g_mid) * i * i / m.mass_kg;
+        let r = self.coil.resistance_ohm;
+        Ok(TimeScales {
+            natural_rad_s: math::sqrt(m.spring_n_per_m / m.mass_kg),
+            authority_mps2: authority,
+            authority_rad_s: math::sqrt(authority / m.stroke_m),
+            coil_open_s: nominal.inductance_h(plant.gap_m(0.0)) / r,
+            coil_closed_s: nominal.inductance_h(plant.gap_m(m.stroke_m)) / r,
+            period_s: 1.0 / self.board.rate_hz,
+            position_code_m: self.calibration().position.scale,
+        })
+    }
+
+    /// The gains in use: the tuned ones, or the defaults derived from the time scales.
+    ///
+    /// # Errors
+    /// As [`Actuator::plant`].
+    pub fn tuning_or_default(&self) -> Result<Tuning, Error> {
+        if let Some(t) = self.tuning {
+            self.validate()?;
+            return Ok(t);
+        }
+        let alpha = DEFAULT_ALPHA_PER_W * self.time_scales()?.mechanical_rad_s();
+        Ok(Tuning {
+            alpha_per_s: alpha,
+            observer_rad_s: DEFAULT_OBSERVER_PER_ALPHA * alpha,
+            margin: DEFAULT_MARGIN,
+            disturbance_follows_force: true,
+        })
+    }
+
+    /// The law's limit on the desired current: the rating less the ripple allowance \[A\].
+    #[must_use]
+    pub fn current_limit_a(&self) -> f32 {
+        (1.0 - RIPPLE_SHARE) * self.coil.rated_current_a
+    }
+
+    /// Every controller setting, derived (see the module documentation for each rule).
+    /// The result is validated by building it once.
+    ///
+    /// # Errors
+    /// The first bad field of the file by its name, or a derived setting that does not
+    /// build (named as in the settings).
+    pub fn settings(&self) -> Result<Settings, Error> {
+        let plant = self.plant()?;
+        let tuning = self.tuning_or_default()?;
+        let scales = self.time_scales()?;
+        let sense = self.calibration();
+        let b = &self.board;
+        let c = &self.coil;
+        let current_max_a = self.current_limit_a();
+        let gains = law::discrete::Gains::new(tuning.alpha_per_s, current_max_a);
+        let shaping = trajectory::Settings {
+            accel_max_mps2: scales.authority_mps2,
+            current_max_a,
+            margin: tuning.margin,
+            duration_min_s: 2.6 / tuning.alpha_per_s,
+        };
+        let settings = Settings {
+            rate_hz: b.rate_hz,
+            plant,
+            sense,
+            observer: observer::Gains {
+                bandwidth_rad_s: tuning.observer_rad_s,
+                disturbance: true,
+                model: observer::Model::Robust,
+                force_scaled_above_a: if tuning.disturbance_follows_force {
+                    FORCE_SCALED_SHARE * current_max_a
+                } else {
+                    0.0
+                },
+            },
+            law: law::Settings::Discrete(gains),
+            limits: Limits::for_stroke(
+                plant.stroke_m,
+                c.peak_current_a,
+                VBUS_MIN_SHARE * b.supply_v,
+                VBUS_MAX_SHARE * b.supply_v,
+            ),
+            delay_ticks: 1,
+            shaping: Some(shaping),
+            monitors: self.monitors(&sense, &plant, &shaping)?,
+        };
+        settings.build()?;
+        Ok(settings)
+    }
+
+    /// The fault detectors, from the ratings, the converters' resolution and the
+    /// settling target.
+    fn monitors(
+        &self,
+        sense: &Calibration,
+        plant: &Plant,
+        shaping: &trajectory::Settings,
+    ) -> Result<Monitors, Error> {
+        let c = &self.coil;
+        let planner = shaping.build(plant, 1.0 / self.board.rate_hz)?;
+        let stroke = plant.stroke_m;
+        // The magnet at the current limit must lift the weakest admissible armature off the
+        // open stop against its spring, or no move up can be planned.
+        let (lift_n, _) = planner.force_budget_n(0.0, stroke);
+        if lift_n.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            return Err(Error {
+                param: "coil.rated_current_a",
+                value: c.rated_current_a,
+                reason: Reason::Derived {
+                    what: "the magnet's pull at the current limit less the spring, at the open \
+                           stop on the weakest plant the surfaces allow [N]",
+                    derived: lift_n,
+                },
+            });
+        }
+        let settling_s = math::max(
+            SETTLING_CLAIM_S,
+            SETTLING_PER_MINIMUM_MOVE * planner.minimum_time_s(0.0, stroke),
+        );
+        Ok(Monitors {
+            thermal: Some(Thermal {
+                continuous_a: c.rated_current_a,
+                allowance_a2s: (c.peak_current_a * c.peak_current_a
+                    - c.rated_current_a * c.rated_current_a)
+                    * c.peak_time_s,
+            }),
+            stuck: Some(stuck_detector(&sense.position)),
+            residual: Some(residual_detector(&sense.current)),
+            tracking: Some(Tracking {
+                error_m: 0.125 * stroke,
+                time_s: 0.25 * settling_s,
+            }),
+        })
+    }
+}
+
+/// Half-width of the stuck detector's band \[code\]: about 4 sigma of the converter's
+/// 1.5 codes of noise (8.7 um on the reference board).
+pub const STUCK_BAND_CODES: f32 = 8.0;
+/// Reference travel, in bands, that must have moved a healthy reading out of the band
+/// \[-\]: a healthy reading leaves it after at most the band plus two noise excursions.
+pub const STUCK_TRAVEL_BANDS: f32 = 2.4;
+/// How long a reading may stay in the band while the reference moves \[s\]: 70 % of the
+/// 1 ms in which every fault must be named.
+pub const STUCK_WINDOW_S: f32 = 0.7e-3;
+
+/// The stuck-position detector for a position channel: a band of
+/// [`STUCK_BAND_CODES`] codes, [`STUCK_TRAVEL_BANDS`] bands of reference travel, a
+/// [`STUCK_WINDOW_S`] window (0.6 ms and 2.1 bands tripped on 3 of 300 healthy drawn
+/// plants of the paper's actuator at 10 kHz; 0.7 ms and 2.4 bands on none of 600).
+#[must_use]
+pub fn stuck_detector(position: &Channel) -> Stuck {
+    Stuck {
+        window_s: STUCK_WINDOW_S,
+        band_codes: STUCK_BAND_CODES,
+        reference_m: STUCK_TRAVEL_BANDS * STUCK_BAND_CODES * position.scale.abs(),
+    }
+}
+
+/// The electrical residual for a current channel, in its own codes: a noise allowance of
+/// 8 codes (5.6 sigma of a one-step difference at 1 code of noise, 3.8 sigma at 1.5; four
+/// in a row in the same direction are needed), a 10 % margin, evidence for 0.2 ms (at
+/// least 2 ticks), a jump of 62 codes (0.5 A on the reference board's +-16.5 A channel),
+/// open below 25 codes (0.2 A there), a gross factor of 2 and a 16-tick corner bank.
+#[must_use]
+pub fn residual_detector(current: &Channel) -> Residual {
+    let code_a = current.scale.abs();
+    Residual {
+        noise_codes: 8.0,
+        margin: 0.1,
+        confirm_s: 0.2e-3,
+        jump_a: 62.0 * code_a,
+        open_a: 25.0 * code_a,
+        gross: 2.0,
+        window: 16,
+    }
+}
+
+/// Steps of the grids [`energy_consistent_share`] searches.
+const GROWTH_GRID: u16 = 16;
+
+/// How far below the physical lower bound the controller's lower surface bound must go so
+/// that its force bound `mu_lo` still holds for every actuator the physical bounds allow,
+/// with the energy-consistent force \[-\] (1 when nothing needs to move).
+///
+/// The paper bounds the airgap surface, `S_lo <= S(g) <= S_hi`, and builds `mu_lo` from
+/// `S_lo` with the surface held constant when differentiating the inductance. A real
+/// reluctance force is `-dL/dg`: for a surface that grows with the gap,
+/// `S(g) = (a + k g)^2`, it is the frozen one times `1 - g S'(g) / S(g)`, which falls below
+/// the paper's `mu_lo` wherever the surface grows fast across a large gap. Over every such
+/// surface inside the physical bounds (its ends anywhere in them, the upper one above the
+/// lower) and every gap of the stroke, this finds the largest `r <= 1` for which the
+/// frozen force of the constant surface `r S_lo` stays below the energy-consistent force;
+/// the controller's `S_lo` is then `r S_lo`.
+fn energy_consistent_share(
+    magnetics: &model::Magnetics,
+    physical: &Bounds,
+    (g_lo, g_hi): (f32, f32),
+) -> f32 {
+    let n2 = magnetics.turns_sq();
+    let gaps = magnetics.gaps;
+    let rho0 = magnetics.rho0_per_h;
+    // Frozen force coefficient of a constant surface `s` at gap `g`.
+    let frozen = |s: f32, g: f32| {
+        let rho_x = gaps / (MU0_H_PER_M * s);
+        let rho = rho_x * g + rho0;
+        n2 * rho_x / (rho * rho)
+    };
+    let span = g_hi - g_lo;
+    if span.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+        return 1.0;
+    }
+    let (s_lo, s_hi) = (physical.s_lo_m2, physical.s_hi_m2);
+    let (r_lo, r_hi) = (math::sqrt(s_lo), math::sqrt(s_hi));
+    let steps = f32::from(GROWTH_GRID);
+    // The weakest energy-consistent force over the grown surfaces, at each gap of the grid.
+    let mut floor = [f32::INFINITY; GROWTH_GRID as usize + 1];
+    for i in 0..=GROWTH_GRID {
+        // sqrt of the surface at the smallest gap, then at the largest.
+        let r1 = r_lo + (r_hi - r_lo) * f32::from(i) / steps;
+        for j in i..=GROWTH_GRID {
+            let r2 = r_lo + (r_hi - r_lo) * f32::from(j) / steps;
+            let k = (r2 - r1) / span;
+            for (q, least) in (0..=GROWTH_GRID).zip(floor.iter_mut()) {
+                let g = g_lo + span * f32::from(q) / steps;
+                let side = r1 + k * (g - g_lo);
+                // -dL/dg with S(g) = side^2: the frozen value times 1 - 2 g k / side.
+                let energy = frozen(side * side, g) * (1.0 - 2.0 * g * k / side);
+                *least = math::min(*least, energy);
+            }
+        }
+    }
+    // The largest share whose frozen force stays below that floor at every gap: the
+    // frozen force grows with the surface, so bisect.
+    let below = |r: f32| {
+        (0..=GROWTH_GRID).zip(floor.iter()).all(|(q, least)| {
+            let g = g_lo + span * f32::from(q) / steps;
+            frozen(r * s_lo, g) <= *least
+        })
+    };
+    if below(1.0) {
+        return 1.0;
+    }
+    let (mut lo, mut hi) = (0.1_f32, 1.0_f32);
+    if !below(lo) {
+        return lo;
+    }
+    for _ in 0..24 {
+        let mid = 0.5 * (lo + hi);
+        if below(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}

@@ -13,12 +13,14 @@ use hil_sim::accuracy::{bench_scenario, BENCH_SUBSTEPS};
 fn closed_loop(c: &mut Criterion) {
     let mut group =
         c.benchmark_group("closed loop 0.5 s at 20 kHz, practical law, averaged bridge");
-    let validated = bench_scenario();
+    let validated = bench_scenario().expect("the product's settings derive");
     group.bench_function(
         format!("{BENCH_SUBSTEPS} RK4 substep per period (validated)"),
         |b| b.iter(|| hil_sim::run(std::hint::black_box(&validated))),
     );
-    let ten = bench_scenario().with_substeps(10);
+    let ten = bench_scenario()
+        .expect("the product's settings derive")
+        .with_substeps(10);
     group.bench_function("10 RK4 substeps per period (scenario files)", |b| {
         b.iter(|| hil_sim::run(std::hint::black_box(&ten)))
     });

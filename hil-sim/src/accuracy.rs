@@ -1,15 +1,27 @@
 //! How many RK4 substeps per ISR period a scenario needs, measured rather than assumed.
 //!
-//! The closed loop with an `f32` controller and a sign or quantising element is not a
-//! smooth function of the integration error: one flipped `f32` rounding, one different
-//! converter code or one sign change moves the next command by a whole step, and the two
-//! runs part ways for reasons that have nothing to do with the integrator (the paper's
-//! sign law does this at every tick). So the integrator is measured open loop, on the
-//! loop's own input: the scenario runs once closed loop with
-//! RK4 steps of [`REFERENCE_STEP_S`] (1 us), its bridge commands are recorded, and the
-//! plant alone is replayed under those commands with fewer substeps. The error is the
-//! largest `|x - x_ref|` over the run relative to the stroke, and the largest
+//! The scenario runs once closed loop with RK4 steps of [`REFERENCE_STEP_S`] (1 us); its
+//! bridge commands and its true states at every sample are recorded. A substep count is
+//! then judged period by period: from the reference's state at the start of each period,
+//! the plant alone is advanced over that period under that period's command with the
+//! substeps in question, and compared with the reference's state at the end of it. The
+//! error is the largest `|x - x_ref|` of one period relative to the stroke, and the largest
 //! `|i - i_ref|` relative to the reference run's peak current.
+//!
+//! Why one period at a time, and not the whole run replayed open loop: the closed loop is
+//! what keeps a reluctance actuator where it is. In the physical convention, where the
+//! magnet holds the armature near the closed stop its stiffness exceeds the spring's (at
+//! 3 mm on the product's actuator, the magnet's -2F/g is several times the 120 N/m
+//! spring; on the coil's time scale, 0.9 ms there, the voltage drive acts as a current
+//! drive), so the plant without its controller diverges there at about 60 rad/s: a replay
+//! under recorded commands amplifies any difference, down to the last bit of rounding,
+//! whatever the step (test `an_open_loop_replay_of_the_physical_plant_drifts_whatever_the_step`:
+//! 1e-14 of the stroke grows to 0.22 over the product's sequence). That is what once
+//! reported a replay "within 0.25 of the stroke" for a step size whose closed-loop metrics
+//! agreed with a 1 us solution to three digits. The error made within each period is what
+//! the integrator contributes; the closed loop forgets it within its own time constant
+//! (`1/alpha`, some hundred periods), so the trajectory's error stays within a few hundred
+//! times the one-period error, which [`TOLERANCE_REL`] bounds.
 
 use crate::hal::Drive;
 use crate::scenario::{BridgeMode, Scenario, Sensors};
@@ -19,24 +31,26 @@ use crate::Error;
 /// RK4 step of the reference solution \[s\].
 pub const REFERENCE_STEP_S: f64 = 1e-6;
 
-/// Largest relative error accepted by [`fewest_substeps`] \[-\].
-pub const TOLERANCE_REL: f64 = 1e-4;
+/// Largest error of one period accepted by [`fewest_substeps`], relative to the stroke
+/// and to the peak current \[-\].
+pub const TOLERANCE_REL: f64 = 1e-6;
 
 /// RK4 substeps per period of the benchmark loop ([`bench_scenario`]) at 20 kHz: the
-/// fewest within [`TOLERANCE_REL`] of the 1 us solution (test
-/// `the_bench_substep_count_is_the_fewest_within_1e_4_of_a_1_us_solution`: one 50 us step
-/// per period is within 5.7e-7 of the peak current and 2.1e-8 of the stroke).
-pub const BENCH_SUBSTEPS: u32 = 1;
+/// fewest within [`TOLERANCE_REL`] of the 1 us solution over one period (test
+/// `the_bench_substep_count_is_the_fewest_within_tolerance_of_a_1_us_solution`).
+pub const BENCH_SUBSTEPS: u32 = 3;
 
 /// The benchmark loop: `Scenario::product(20e3, 24.0)` (the practical law, averaged
 /// bridge, 24 V) with ideal sensors so that the trajectory is deterministic and smooth,
 /// 0.5 s, [`BENCH_SUBSTEPS`] substeps per period.
-#[must_use]
-pub fn bench_scenario() -> Scenario {
-    Scenario::product(20_000.0, 24.0)
+///
+/// # Errors
+/// None today: the product's settings always derive.
+pub fn bench_scenario() -> Result<Scenario, Error> {
+    Ok(Scenario::product(20_000.0, 24.0)?
         .with_sensors(Sensors::Ideal)
         .with_duration_s(0.5)
-        .with_substeps(BENCH_SUBSTEPS)
+        .with_substeps(BENCH_SUBSTEPS))
 }
 
 /// Integration error of a substep count against the 1 us reference.
@@ -58,12 +72,12 @@ impl Accuracy {
     }
 }
 
-/// The reference run of a scenario, ready to be replayed.
+/// The reference run of a scenario, ready to be compared with.
 #[derive(Clone, Debug)]
 pub struct Reference {
     scenario: Scenario,
     drives: Vec<Drive>,
-    truth: Vec<(f64, f64)>,
+    trace: Vec<crate::Sample>,
     peak_a: f64,
     stroke_m: f64,
 }
@@ -83,7 +97,8 @@ pub fn reference_substeps(rate_hz: f64) -> u32 {
 }
 
 impl Reference {
-    /// Runs `scenario` closed loop with 1 us RK4 steps and records its bridge commands.
+    /// Runs `scenario` closed loop with 1 us RK4 steps and records its bridge commands and
+    /// true states.
     ///
     /// # Errors
     /// An invalid scenario, by name.
@@ -97,17 +112,17 @@ impl Reference {
             .iter()
             .map(|s| Drive::from_mode(s.mode, s.duty, sc.bridge.max_duty))
             .collect();
-        let truth = r.trace.iter().map(|s| (s.x_m, s.i_a)).collect();
         Ok(Self {
             peak_a: r.metrics.i_peak_a,
             stroke_m: r.plant.stroke_m,
             scenario: sc,
             drives,
-            truth,
+            trace: r.trace,
         })
     }
 
-    /// Replays the recorded commands with `substeps` per period and compares.
+    /// Advances every period alone from the reference's state with `substeps` per period
+    /// and compares with the reference's next state.
     ///
     /// # Errors
     /// A substep count of zero.
@@ -116,11 +131,18 @@ impl Reference {
         let plant = sc.plant.resolve(&sc.controller.plant);
         let mut st = Stepper::for_scenario(sc, plant, substeps)?;
         let (mut dx, mut di) = (0.0_f64, 0.0_f64);
-        for (d, (x_ref, i_ref)) in self.drives.iter().zip(&self.truth) {
-            let now = st.sample();
-            dx = dx.max((now.x_m - x_ref).abs());
-            di = di.max((now.i_a - i_ref).abs());
+        for (k, ((d, now), next)) in self
+            .drives
+            .iter()
+            .zip(&self.trace)
+            .zip(self.trace.iter().skip(1))
+            .enumerate()
+        {
+            st.resync(k as u64, now);
             st.advance(*d, sc.bridge.mode);
+            let end = st.sample();
+            dx = dx.max((end.x_m - next.x_m).abs());
+            di = di.max((end.i_a - next.i_a).abs());
         }
         Ok(Accuracy {
             substeps,

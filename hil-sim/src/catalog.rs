@@ -132,8 +132,10 @@ impl fmt::Display for LoadError {
 
 impl std::error::Error for LoadError {}
 
-/// Loads a scenario by embedded name (see [`EMBEDDED`]) or from a TOML file, and checks
-/// it ([`preflight`]). A file without a `name` is named after its stem.
+/// Loads a scenario by embedded name (see [`EMBEDDED`]), an actuator of the family by
+/// name (its evaluation scenario, [`crate::actuator::scenario`], with its tuned gains), or
+/// a TOML file, scenario or actuator (an actuator file has a `[mechanics]` table), and
+/// checks it ([`preflight`]). A scenario file without a `name` is named after its stem.
 ///
 /// # Errors
 /// See [`LoadError`].
@@ -141,15 +143,34 @@ pub fn load(name_or_path: &str) -> Result<Scenario, LoadError> {
     if let Some(e) = embedded(name_or_path) {
         return parse_named(e.text, e.name, e.name);
     }
+    if let Some(e) = crate::actuator::member(name_or_path) {
+        return from_actuator(e.tuned, e.name, e.name);
+    }
     let path = Path::new(name_or_path);
     let text = std::fs::read_to_string(path).map_err(|e| LoadError::NotFound {
         what: name_or_path.to_owned(),
         io: e.to_string(),
     })?;
+    let origin = path.display().to_string();
+    if crate::actuator::is_actuator_text(&text) {
+        return from_actuator(&text, &origin, &crate::actuator::stem(path));
+    }
     let stem = path
         .file_stem()
         .map_or_else(|| "scenario".into(), |s| s.to_string_lossy().into_owned());
-    parse_named(&text, &path.display().to_string(), &stem)
+    parse_named(&text, &origin, &stem)
+}
+
+/// An actuator file's evaluation scenario ([`crate::actuator::scenario`]), checked.
+fn from_actuator(text: &str, origin: &str, name: &str) -> Result<Scenario, LoadError> {
+    let act = crate::actuator::parse(text, origin)?;
+    let invalid = |error| LoadError::Invalid {
+        origin: origin.to_owned(),
+        error,
+    };
+    let sc = crate::actuator::scenario(name, &act).map_err(invalid)?;
+    preflight(&sc).map_err(invalid)?;
+    Ok(sc)
 }
 
 /// Parses and checks scenario TOML; `origin` names it in errors.

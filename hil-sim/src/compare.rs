@@ -1,7 +1,9 @@
-//! The comparison of the laws (issue 4): the paper's law, its boundary-layer variant and
-//! the practical law, at 10, 20 and 50 kHz and on 24, 48 and 150 V supplies, all under the
-//! same realistic conditions ([`Scenario::product`]: converter noise and delay, supply
-//! resistance, averaged bridge, nominal plant, the paper's step from 1 to 3 mm).
+//! The comparison of the laws: the paper's law, its boundary-layer variant and the
+//! practical law, at 10, 20 and 50 kHz and on 24, 48 and 150 V supplies, all on the
+//! product's actuator in the physical convention and under the same realistic conditions
+//! ([`Scenario::product`]: converter noise and delay, supply resistance, averaged bridge,
+//! nominal plant, the paper's step from 1 to 3 mm), judged by the product's targets
+//! ([`Targets::for_scenario`]).
 //!
 //! Each law runs with its own defaults: the paper-family laws with the paper's gains and
 //! no reference shaping (`Settings::paper`, told about the one-sample delay), the practical
@@ -58,10 +60,13 @@ impl Row {
 /// An unknown law name.
 #[allow(clippy::cast_possible_truncation)]
 pub fn scenario(law_name: &str, rate_hz: f64, supply_v: f64) -> Result<Scenario, Error> {
-    let mut sc = Scenario::product(rate_hz, supply_v);
+    let mut sc = Scenario::product(rate_hz, supply_v)?;
     sc.name = format!("{law_name}-{}khz-{supply_v}v", rate_hz / 1e3);
+    let product_plant = sc.controller.plant;
     let paper_family = |law: law::Settings| {
         let mut s = Settings::paper(rate_hz as f32, supply_v as f32);
+        // The product's actuator, in the physical convention, for every law.
+        s.plant = product_plant;
         s.law = law;
         s.delay_ticks = 1;
         s.sense = hal::calibration(1.5 * supply_v, 120.0);
@@ -101,9 +106,10 @@ pub fn grid(duration_s: f64) -> Result<Vec<Row>, Error> {
         .map(|&(law_name, rate_hz, supply_v)| {
             let sc = scenario(law_name, rate_hz, supply_v)?.with_duration_s(duration_s);
             let r = run(&sc)?;
-            let worst = Worst::of([&r.metrics]);
+            let targets = Targets::for_scenario(&sc);
+            let worst = Worst::of([&r.metrics], &targets);
             let misses = worst
-                .misses(&Targets::product(supply_v))
+                .misses(&targets)
                 .into_iter()
                 .map(str::to_owned)
                 .collect();
@@ -136,8 +142,9 @@ mod tests {
             ("discrete", true),
         ] {
             let sc = scenario(law_name, 20e3, 24.0).unwrap().with_duration_s(0.4);
-            let w = Worst::of([&run(&sc).unwrap().metrics]);
-            let misses = w.misses(&Targets::product(24.0));
+            let t = Targets::for_scenario(&sc);
+            let w = Worst::of([&run(&sc).unwrap().metrics], &t);
+            let misses = w.misses(&t);
             assert_eq!(misses.is_empty(), pass, "{law_name}: {misses:?} {w:?}");
         }
     }

@@ -17,6 +17,9 @@ pub enum Error {
     },
     /// The controller settings, refused by `ema::control::Settings::build`.
     Controller(ema::config::Error),
+    /// An actuator file, refused by `ema::actuator::Actuator::settings` (the name is the
+    /// field's in the file).
+    Actuator(ema::config::Error),
 }
 
 impl Error {
@@ -34,7 +37,7 @@ impl Error {
     pub fn name(&self) -> &str {
         match self {
             Error::Param { name, .. } => name,
-            Error::Controller(e) => e.param,
+            Error::Controller(e) | Error::Actuator(e) => e.param,
         }
     }
 }
@@ -48,6 +51,7 @@ impl fmt::Display for Error {
                 reason,
             } => write!(f, "{name} = {value}: {reason}"),
             Error::Controller(e) => write!(f, "controller: {e}"),
+            Error::Actuator(e) => write!(f, "{e}"),
         }
     }
 }

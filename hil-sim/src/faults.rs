@@ -1,19 +1,18 @@
-//! Fault injection (issue 6): one scenario per fault, the fault the supervisor must name,
-//! how fast it does, and how high the coil current gets.
+//! Fault injection: one scenario per fault, the fault the supervisor must name, how fast
+//! it does, and how high the coil current gets.
 //!
-//! Every case runs the product's realistic default ([`Scenario::product`]: 20 kHz, 24 V,
-//! converter noise and delay) on the paper's step from 1 mm to 3 mm. Each must be
-//! detected within 1 ms (20 ticks), with the expected code, the current never above the
-//! trip level (limit + 10 %, 13.2 A), and the bridge coasting from then on.
+//! Every case runs an actuator's evaluation scenario ([`crate::actuator::scenario`]:
+//! converter noise and delay, the sequence across the stroke); [`cases`] places each
+//! injection on that scenario's own timing. Each must be detected within 1 ms, with the
+//! expected code, after the injection, the current never above the trip level (the
+//! actuator's peak current), and the bridge coasting from then on.
 //!
-//! Most faults are injected while holding at 3 mm. A frozen sensor reading, though, looks
-//! exactly like a steady state until the quantity must change, so those two are injected
-//! where it must: the position sensor at the fastest point of a 3 mm move (the issue's
-//! sequence, 0.5 -> 3.5 mm: the reference moves 51 um per ms there; a reading that stays
-//! within its noise band for 0.7 ms while a fast reference moves 21 um is stuck), the current sensor
-//! during the start-up current ramp (the current rises by about 0.5 A per tick). Frozen in a steady phase, the current reading
-//! is found once the loop has wound up against it: measured 3.1 ms after a freeze in the
-//! middle of the move, where the current only changes by milliamperes per tick.
+//! Most faults are injected while holding. A frozen sensor reading, though, looks exactly
+//! like a steady state until the quantity must change, so those two are injected where it
+//! must: the position sensor at the fastest point of the long move up (a reading that
+//! stays within its noise band for 0.7 ms while a fast reference moves is stuck), the
+//! current sensor during the start-up current ramp. Frozen in a steady phase, a current
+//! reading is found only once the loop has wound up against it.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -55,7 +54,8 @@ pub struct Outcome {
     pub expected: String,
     /// Latched fault, if any.
     pub fault: Option<String>,
-    /// Time from the injection to the first sample with the fault latched \[s\].
+    /// Time from the injection to the first sample with the fault latched \[s\]
+    /// (negative: a fault latched before the injection, which fails the case).
     pub detected_after_s: Option<f64>,
     /// Largest coil current over the run, also between samples \[A\].
     pub peak_current_a: f64,
@@ -71,28 +71,74 @@ impl Outcome {
     #[must_use]
     pub fn pass(&self) -> bool {
         self.fault.as_deref() == Some(self.expected.as_str())
-            && self.detected_after_s.is_some_and(|t| t <= DEADLINE_S)
+            && self
+                .detected_after_s
+                .is_some_and(|t| (0.0..=DEADLINE_S).contains(&t))
             && self.peak_current_a <= self.trip_a
             && self.coasting
     }
 }
 
-/// The cases, at `rate_hz` on a `supply_v` supply.
-#[must_use]
-pub fn cases(rate_hz: f64, supply_v: f64) -> Vec<Case> {
-    let base = || Scenario::product(rate_hz, supply_v).with_duration_s(0.3);
-    // Fastest point of the sequence's 0.5 -> 3.5 mm move, which starts at 0.3 s: the middle
-    // of the planned quintic (about 0.1 s long).
-    let moving = ((0.3 + 0.5 * planned_move_s(rate_hz, supply_v, 0.5e-3, 3.5e-3)) * rate_hz)
-        .round()
-        / rate_hz;
-    // One tick into the start-up current ramp (half of the rise still to come).
-    let ramping = 1.0 / rate_hz;
-    let holding = 0.2;
-    let case = |name, what, at_s, fault: Injected, expected| Case {
+/// The cases on an actuator's evaluation scenario `base` (a [`crate::actuator::scenario`]:
+/// rest at the open stop, then 1/8, 7/8, 3/8 and 3/4 of the stroke, one segment each).
+///
+/// Injection instants follow the scenario's own timing: "holding" is 10 % of a segment
+/// before the last move, settled at 3/8 of the stroke, where the holding current is the
+/// largest of the sequence; "moving" is the fastest point of the long move up (the middle
+/// of its planned quintic); "ramping" is where the current changes most from one sample to
+/// the next during that move, on a healthy run (a reading frozen at rest, near 0 A, is
+/// indistinguishable from an open coil; one frozen while the current holds still carries
+/// no information until the loop winds up against it). Each
+/// run ends 20 ms after its injection. The current-offset step is 12 % of the current
+/// channel's full scale (2 A on the reference board's +-16.5 A), the shorted coil keeps an
+/// eighth of its resistance.
+///
+/// # Errors
+/// A `base` whose reference is not a sequence of at least three steps.
+pub fn cases(base: &Scenario) -> Result<Vec<Case>, Error> {
+    let crate::Reference::Sequence { initial_m, steps } = &base.reference else {
+        return Err(Error::param(
+            "reference",
+            f64::NAN,
+            "fault injection needs an actuator's evaluation sequence",
+        ));
+    };
+    let (Some(first), Some(last)) = (steps.first(), steps.get(2)) else {
+        return Err(Error::param(
+            "reference.steps",
+            f64::NAN,
+            "fault injection needs at least three steps",
+        ));
+    };
+    let rate_hz = base.rate_hz();
+    let tick = |t: f64| (t * rate_hz).round() / rate_hz;
+    let segment_s = first.at_s;
+    let holding = tick(last.at_s - 0.1 * segment_s);
+    let moving = tick(first.at_s + 0.5 * planned_move_s(&base.controller, *initial_m, first.to_m));
+    // Where the current must change most: the steepest sample-to-sample change of the
+    // current over the long move up, on a healthy run.
+    let move_s = planned_move_s(&base.controller, *initial_m, first.to_m);
+    let healthy = crate::run(&base.clone().with_duration_s(first.at_s + move_s))?;
+    let ramping = healthy
+        .trace
+        .windows(2)
+        .filter(|w| w[0].t_s >= first.at_s)
+        .max_by(|a, b| {
+            (a[1].i_a - a[0].i_a)
+                .abs()
+                .total_cmp(&(b[1].i_a - b[0].i_a).abs())
+        })
+        .map_or(first.at_s, |w| w[0].t_s);
+    let supply_v = base.supply.voltage_v;
+    let full_scale_a = f64::from(base.controller.sense.current.scale.abs()) * 2048.0;
+    let r_ohm = f64::from(base.controller.plant.resistance_ohm);
+    let case = |name, what, at_s: f64, fault: Injected, expected| Case {
         name,
         what,
-        scenario: base().with_fault(at_s, fault),
+        scenario: base
+            .clone()
+            .with_duration_s(at_s + 0.02)
+            .with_fault(at_s, fault),
         at_s,
         expected,
     };
@@ -112,32 +158,41 @@ pub fn cases(rate_hz: f64, supply_v: f64) -> Vec<Case> {
             Fault::PositionSensor,
         ),
         case(
+            "position sensor stuck",
+            "output frozen mid-move",
+            moving,
+            Injected::PositionStuck,
+            Fault::PositionStuck,
+        ),
+        case(
             "current sensor stuck",
-            "output frozen in the start-up ramp",
+            "output frozen where the current changes fastest",
             ramping,
             Injected::CurrentStuck,
             Fault::CurrentStuck,
         ),
         case(
             "current sensor offset",
-            "zero steps by +2 A",
+            "zero steps by 12 % of full scale",
             holding,
-            Injected::CurrentOffset { offset_a: 2.0 },
+            Injected::CurrentOffset {
+                offset_a: 0.12 * full_scale_a,
+            },
             Fault::CurrentOffset,
         ),
         case(
             "coil open",
-            "circuit opens while holding 6 A",
+            "circuit opens while holding",
             holding,
             Injected::CoilOpen,
             Fault::CoilOpen,
         ),
         case(
             "coil short",
-            "R drops to 0.05 ohm",
+            "R drops to 1/8",
             holding,
             Injected::CoilShort {
-                resistance_ohm: 0.05,
+                resistance_ohm: r_ohm / 8.0,
             },
             Fault::CoilShort,
         ),
@@ -152,10 +207,10 @@ pub fn cases(rate_hz: f64, supply_v: f64) -> Vec<Case> {
         ),
         case(
             "supply over-voltage",
-            "source at 150 %",
+            "source at 140 %",
             holding,
             Injected::Supply {
-                voltage_v: 1.5 * supply_v,
+                voltage_v: 1.4 * supply_v,
             },
             Fault::BusOverVoltage,
         ),
@@ -167,57 +222,39 @@ pub fn cases(rate_hz: f64, supply_v: f64) -> Vec<Case> {
             Fault::Overrun,
         ),
     ];
-    out.insert(
-        2,
-        Case {
-            name: "position sensor stuck",
-            what: "output frozen mid-move",
-            scenario: Scenario::product(rate_hz, supply_v)
-                .with_sequence()
-                .with_fault(moving, Injected::PositionStuck),
-            at_s: moving,
-            expected: Fault::PositionStuck,
-        },
-    );
     // A plant outside the controller's bounds from the start: surfaces at half the lower
     // bound (a smaller pole than designed for: 2.5 times less inductance, a weaker
     // magnet). The coil answers the start-up voltage far faster than any coil in the
     // bounds. (Surfaces 60 % above the upper bound are controlled just as well, but their
     // slower answer stays inside the noise allowance and nothing is reported.)
-    let mut outside = base();
-    let mut p = crate::plant::Params::from_core(
-        &outside.controller.plant,
-        crate::plant::ForceModel::Frozen,
-    );
-    let s = 0.5 * f64::from(outside.controller.plant.bounds.s_lo_m2);
+    let mut p =
+        crate::plant::Params::from_core(&base.controller.plant, crate::plant::ForceModel::Frozen);
+    let s = 0.5 * f64::from(base.controller.plant.physical_bounds().s_lo_m2);
     for g in &mut p.gaps {
         *g = Surface::Constant { s_m2: s };
     }
-    outside = outside.with_plant(TruePlant::Given(p));
+    // The coil shows itself when it is driven hard: the long move up, timed from its start.
     out.push(Case {
         name: "plant outside the bounds",
-        what: "surfaces at half the lower bound",
-        scenario: outside,
-        at_s: 0.0,
+        what: "surfaces at half the lower bound, timed from the first move",
+        scenario: base
+            .clone()
+            .with_duration_s(first.at_s + 0.02)
+            .with_plant(TruePlant::Given(p)),
+        at_s: first.at_s,
         expected: Fault::ModelBounds,
     });
-    out
+    Ok(out)
 }
 
-/// Duration \[s\] of the move the product's planner makes from `x0_m` to `x1_m` (0.1 s
+/// Duration \[s\] of the move the settings' planner makes from `x0_m` to `x1_m` (0.1 s
 /// when the settings have no shaping).
 #[allow(clippy::cast_possible_truncation)]
-fn planned_move_s(rate_hz: f64, supply_v: f64, x0_m: f32, x1_m: f32) -> f64 {
-    let settings = Scenario::product(rate_hz, supply_v).controller;
+fn planned_move_s(settings: &ema::control::Settings, x0_m: f64, x1_m: f64) -> f64 {
     let min_s = settings.shaping.map_or(0.0, |s| s.duration_min_s);
-    settings
-        .build()
-        .ok()
-        .and_then(|c| {
-            c.shaping()
-                .map(|p| f64::from(p.duration_s(x0_m, x1_m).max(min_s)))
-        })
-        .unwrap_or(0.1)
+    crate::actuator::planner(settings).map_or(0.1, |p| {
+        f64::from(p.duration_s(x0_m as f32, x1_m as f32).max(min_s))
+    })
 }
 
 /// Runs one case.
@@ -251,10 +288,10 @@ pub fn evaluate(case: &Case) -> Result<Outcome, Error> {
     })
 }
 
-/// Every case, in parallel.
+/// Every case on `base`, in parallel.
 ///
 /// # Errors
 /// A scenario that does not validate.
-pub fn table(rate_hz: f64, supply_v: f64) -> Result<Vec<Outcome>, Error> {
-    cases(rate_hz, supply_v).par_iter().map(evaluate).collect()
+pub fn table(base: &Scenario) -> Result<Vec<Outcome>, Error> {
+    cases(base)?.par_iter().map(evaluate).collect()
 }

@@ -37,10 +37,10 @@ pub const SEED: u64 = 2026;
 /// Settings of the case that the simulator refuses.
 #[allow(clippy::cast_precision_loss)]
 pub fn scenario(case: &Case) -> Result<Scenario, Error> {
-    let settings = (case.settings)();
+    let settings = (case.settings)()?;
     let rate_hz = f64::from(settings.rate_hz);
     let duration_s = TICKS as f64 / rate_hz;
-    let mut sc = Scenario::product(rate_hz, 24.0)
+    let mut sc = Scenario::product(rate_hz, 24.0)?
         .with_reference(Reference::Sequence {
             initial_m: 1e-3,
             steps: vec![
@@ -96,7 +96,9 @@ pub fn generate(case: &Case) -> Result<Vec<u8>, Error> {
             format!("a golden trace needs at least {MIN_GOLDEN_TICKS} ticks"),
         ));
     }
-    let mut bytes = Header::new(case, &cfg, MAX_DUTY, ticks).encode().to_vec();
+    let mut bytes = Header::new(case, &sc.controller, &cfg, MAX_DUTY, ticks)
+        .encode()
+        .to_vec();
     for r in &rec.records {
         bytes.extend_from_slice(&r.encode());
     }

@@ -47,6 +47,7 @@
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 pub mod accuracy;
+pub mod actuator;
 pub mod catalog;
 pub mod cli;
 pub mod compare;

@@ -61,7 +61,7 @@ pub fn montecarlo_with(
     scenario.controller.build()?;
     let uncertainty = match &scenario.plant {
         TruePlant::Drawn { uncertainty, .. } => *uncertainty,
-        _ => Uncertainty::default(),
+        _ => Uncertainty::of(&scenario.controller.plant),
     };
     let bar = if progress {
         ProgressBar::new(n as u64)

@@ -22,7 +22,8 @@
 //! * `physical`: `x` is the stroke from the spring's rest position, `g = g0 - x`; the force
 //!   `+mu i^2 / 2` acts along `+x` and closes the gap; `i' = (u - R i - v i mu) / L`.
 //!
-//! In both, `m v' = F_mag - K x - lambda v`.
+//! In both, `m v' = F_mag - K x - F0 - lambda v` (`F0` the spring's preload, its force
+//! at `x = 0`).
 //!
 //! Two force models ([`ForceModel`]):
 //!
@@ -254,6 +255,9 @@ pub struct Params {
     pub mass_kg: f64,
     /// Spring constant `K` \[N/m\].
     pub spring_n_per_m: f64,
+    /// Spring force at `x = 0`, `F0` \[N\] (0 when left out of a file).
+    #[serde(default)]
+    pub preload_n: f64,
     /// Viscous friction `lambda` \[N s/m\].
     pub friction_n_s_per_m: f64,
     /// Coil resistance `R` \[ohm\].
@@ -296,6 +300,7 @@ impl Params {
         Self {
             mass_kg: 0.1,
             spring_n_per_m: 120.0,
+            preload_n: 0.0,
             friction_n_s_per_m: 5.0,
             resistance_ohm: 0.4,
             turns: 70.0,
@@ -331,6 +336,7 @@ impl Params {
         Self {
             mass_kg: f64::from(plant.mass_kg),
             spring_n_per_m: f64::from(plant.spring_n_per_m),
+            preload_n: f64::from(plant.preload_n),
             friction_n_s_per_m: f64::from(plant.friction_n_s_per_m),
             resistance_ohm: f64::from(plant.resistance_ohm),
             turns: f64::from(m.turns),
@@ -350,6 +356,7 @@ impl Params {
     pub fn validate(&self) -> Result<(), Error> {
         positive("plant.mass_kg", self.mass_kg)?;
         non_negative("plant.spring_n_per_m", self.spring_n_per_m)?;
+        non_negative("plant.preload_n", self.preload_n)?;
         non_negative("plant.friction_n_s_per_m", self.friction_n_s_per_m)?;
         positive("plant.resistance_ohm", self.resistance_ohm)?;
         positive("plant.turns", self.turns)?;
@@ -470,11 +477,18 @@ impl Params {
         }
     }
 
-    /// Current \[A\] that holds `x_m` against the spring, unsaturated: `sqrt(2 K x / mu)`
-    /// (0 where the spring needs no magnetic force).
+    /// The spring's pull toward `-x` at `x_m`, `K x + F0` \[N\].
+    #[inline]
+    #[must_use]
+    pub fn spring_force_n(&self, x_m: f64) -> f64 {
+        self.spring_n_per_m * x_m + self.preload_n
+    }
+
+    /// Current \[A\] that holds `x_m` against the spring, unsaturated:
+    /// `sqrt(2 (K x + F0) / mu)` (0 where the spring needs no magnetic force).
     #[must_use]
     pub fn holding_current_a(&self, x_m: f64) -> f64 {
-        let f = self.spring_n_per_m * x_m;
+        let f = self.spring_force_n(x_m);
         if f <= 0.0 {
             0.0
         } else {
@@ -582,7 +596,7 @@ impl Params {
     fn derivative(&self, y: &[f64; 6], input: &Input) -> [f64; 6] {
         let (x, v, e) = (y[0], y[1], y[2]);
         let (force, i, l, mu) = self.electromagnetics(x, e);
-        let mut a = (force - self.spring_n_per_m * x - self.friction_n_s_per_m * v) / self.mass_kg;
+        let mut a = (force - self.spring_force_n(x) - self.friction_n_s_per_m * v) / self.mass_kg;
         // Contact: a stop cancels any acceleration into it.
         if x <= 0.0 && v <= 0.0 {
             a = a.max(0.0);

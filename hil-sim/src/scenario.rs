@@ -2,6 +2,7 @@
 //! reference and duration. Every type here is serde-(de)serializable with unit-carrying
 //! field names, ready for scenario files.
 
+use ema::actuator::Actuator;
 use ema::control::Settings;
 use ema::law;
 use rand::Rng;
@@ -253,7 +254,7 @@ pub struct Initial {
 pub struct Uncertainty {
     /// Relative spread of the coil resistance (`0.2` = +-20 %) \[-\].
     pub resistance_rel: f64,
-    /// Relative spread of the spring constant \[-\].
+    /// Relative spread of the spring constant and, drawn on its own, of the preload \[-\].
     pub spring_rel: f64,
     /// Relative spread of the moving mass \[-\].
     pub mass_rel: f64,
@@ -287,6 +288,20 @@ impl Default for Uncertainty {
 const DRAW_MARGIN: f64 = 1e-6;
 
 impl Uncertainty {
+    /// The controller's own uncertainty set: the spreads its plant's tolerances state,
+    /// both force models and both surface models equally likely.
+    #[must_use]
+    pub fn of(plant: &ema::model::Plant) -> Self {
+        let t = &plant.tolerance;
+        Self {
+            resistance_rel: f64::from(t.resistance),
+            spring_rel: f64::from(t.spring),
+            mass_rel: f64::from(t.mass),
+            friction_rel: f64::from(t.friction),
+            ..Self::default()
+        }
+    }
+
     /// Checks the spreads (in `[0, 1)`) and the probabilities (in `[0, 1]`).
     ///
     /// # Errors
@@ -326,7 +341,9 @@ impl Uncertainty {
 
     /// Draws a true plant around the controller's nominal plant `nominal`: mechanics and
     /// resistance within the relative spreads, each gap's surface anywhere within the
-    /// controller's surface bounds `[S_lo, S_hi]` over the whole stroke (constant, or a
+    /// physical surface bounds `[S_lo, S_hi]` over the whole stroke
+    /// (`ema::model::Plant::physical_bounds`: the paper's bounds, which the controller's
+    /// contain) (constant, or a
     /// square pole `(a + k g)^2` whose surface at the two ends of the gap range is drawn
     /// inside the bounds), and the force model.
     ///
@@ -335,8 +352,9 @@ impl Uncertainty {
     /// middle surface.
     pub fn draw<R: Rng + ?Sized>(&self, nominal: &ema::model::Plant, rng: &mut R) -> Params {
         let mut p = Params::from_core(nominal, ForceModel::Frozen);
-        let s_lo = f64::from(nominal.bounds.s_lo_m2) * (1.0 + DRAW_MARGIN);
-        let s_hi = f64::from(nominal.bounds.s_hi_m2) * (1.0 - DRAW_MARGIN);
+        let physical = nominal.physical_bounds();
+        let s_lo = f64::from(physical.s_lo_m2) * (1.0 + DRAW_MARGIN);
+        let s_hi = f64::from(physical.s_hi_m2) * (1.0 - DRAW_MARGIN);
         let (s_lo, s_hi) = if s_lo < s_hi {
             (s_lo, s_hi)
         } else {
@@ -369,6 +387,7 @@ impl Uncertainty {
         let mut spread = |v: f64, r: f64| v * (1.0 + rng.random_range(-rel(r)..=rel(r)));
         p.resistance_ohm = spread(p.resistance_ohm, self.resistance_rel);
         p.spring_n_per_m = spread(p.spring_n_per_m, self.spring_rel);
+        p.preload_n = spread(p.preload_n, self.spring_rel);
         p.mass_kg = spread(p.mass_kg, self.mass_rel);
         p.friction_n_s_per_m = spread(p.friction_n_s_per_m, self.friction_rel);
         p.force = if rng.random_bool(probability(self.energy_consistent_probability)) {
@@ -535,18 +554,20 @@ pub enum BridgeMode {
 pub struct Bridge {
     /// Averaged or switching-level.
     pub mode: BridgeMode,
-    /// PWM full-scale compare value (4200: a 168 MHz timer, centre-aligned at 20 kHz).
+    /// PWM full-scale compare value (4201 at 20 kHz: half a period of a 168 MHz timer, plus
+    /// one for 100 %).
     pub max_duty: u16,
     /// Forward drop of one freewheeling diode \[V\].
     pub diode_drop_v: f64,
 }
 
 impl Default for Bridge {
-    /// Averaged, 4200 counts, 0.7 V diodes.
+    /// Averaged, the firmware's PWM resolution at 20 kHz (4201 counts,
+    /// [`crate::actuator::pwm_full_scale`]), 0.7 V diodes.
     fn default() -> Self {
         Self {
             mode: BridgeMode::Averaged,
-            max_duty: 4200,
+            max_duty: crate::actuator::pwm_full_scale(20e3),
             diode_drop_v: 0.7,
         }
     }
@@ -593,7 +614,7 @@ impl Integration {
 /// | `initial` | at rest, no current, at the reference's starting value ([`Reference::start_m`]) |
 /// | `plant` | the controller's nominal plant, frozen fringing (`kind = "nominal"`) |
 /// | `sensors` | ideal (`kind = "ideal"`) |
-/// | `bridge` | [`Bridge::default`]: averaged, 4200 counts, 0.7 V diodes (each field alone too) |
+/// | `bridge` | [`Bridge::default`]: averaged, 4201 counts, 0.7 V diodes (each field alone too) |
 /// | `integration` | [`Integration::for_rate`] of `controller.rate_hz` |
 /// | `probes_s` | none |
 /// | `steady_window_s` | 0.05 s |
@@ -701,6 +722,9 @@ impl From<File> for Scenario {
     }
 }
 
+/// PWM full scale of the paper's reproduction (a 4200-count timer period).
+pub const PAPER_MAX_DUTY: u16 = 4200;
+
 /// Supply voltage of the paper's example \[V\].
 pub const PAPER_SUPPLY_V: f64 = 150.0;
 
@@ -735,7 +759,12 @@ impl Scenario {
             plant: TruePlant::Given(Params::paper()),
             controller,
             sensors: Sensors::Ideal,
-            bridge: Bridge::default(),
+            bridge: Bridge {
+                // The reproduction keeps the PWM resolution its claims table was first
+                // measured with (the chattering sampled law is sensitive to the last count).
+                max_duty: PAPER_MAX_DUTY,
+                ..Bridge::default()
+            },
             integration: Integration::for_rate(rate_hz),
             probes_s: vec![0.5],
             steady_window_s: default_window(),
@@ -744,76 +773,47 @@ impl Scenario {
     }
 
     /// The product's realistic default at an ISR rate of `rate_hz` on a `supply_v`
-    /// supply: the practical law (`Settings::practical`: discrete-time law, extended-state
-    /// observer, one sample of measurement delay, reference shaping, every fault detector),
-    /// the nominal actuator (frozen fringing), a supply with 50 mOhm of internal
-    /// resistance, the averaged bridge, a 12-bit converter on every channel with 1.5 codes
-    /// RMS of noise and one sample of delay ([`Adc::typical`]), the board's current channel
-    /// (+-16.5 A) and its 72.6 V bus channel (or twice the supply, if more: the channel
-    /// must read an over-voltage, not clip it); the paper's step from 1 mm to 3 mm, 0.4 s.
-    #[must_use]
+    /// supply: the product's actuator ([`ema::actuator::Actuator::PRODUCT`], the physical
+    /// convention) with every setting derived from it (the practical law, extended-state
+    /// observer, one sample of measurement delay, reference shaping, every fault
+    /// detector), judged as [`crate::actuator::scenario`] judges any actuator (converter
+    /// noise and delay, supply resistance, averaged bridge, nominal plant with frozen
+    /// fringing), on the paper's step from 1 mm to 3 mm from rest without current, 0.4 s.
+    ///
+    /// # Errors
+    /// A rate or supply the derivation refuses, by name.
     #[allow(clippy::cast_possible_truncation)]
-    pub fn product(rate_hz: f64, supply_v: f64) -> Self {
-        let mut controller = Settings::practical(rate_hz as f32, supply_v as f32);
-        controller.sense = hal::calibration((2.0 * supply_v).max(72.6), 16.5);
-        Self {
-            name: format!("product-{rate_hz}hz-{supply_v}v"),
-            duration_s: 0.4,
-            supply: Supply {
-                voltage_v: supply_v,
-                internal_resistance_ohm: 0.05,
-            },
-            reference: Reference::Step {
+    pub fn product(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
+        let act = Actuator::PRODUCT
+            .with_rate_hz(rate_hz as f32)
+            .with_supply_v(supply_v as f32);
+        let sc = crate::actuator::scenario(&format!("product-{rate_hz}hz-{supply_v}v"), &act)?;
+        Ok(sc
+            .with_reference(Reference::Step {
                 from_m: 1e-3,
                 to_m: 3e-3,
                 at_s: 0.0,
-            },
-            initial: Initial {
+            })
+            .with_initial(Initial {
                 x_m: 1e-3,
                 v_mps: 0.0,
                 i_a: 0.0,
-            },
-            plant: TruePlant::Nominal {
-                force: ForceModel::default(),
-            },
-            controller,
-            sensors: Sensors::Adc(Adc::typical()),
-            bridge: Bridge::default(),
-            integration: Integration::for_rate(rate_hz),
-            probes_s: Vec::new(),
-            steady_window_s: default_window(),
-            faults: Vec::new(),
-        }
+            })
+            .with_duration_s(0.4))
     }
 
-    /// The sequence of steps across the stroke, 0.3 s each:
-    /// 0.5 mm, then 3.5 mm at 0.3 s, 1.5 mm at 0.6 s, 3 mm at 0.9 s; 1.2 s in all, starting
-    /// at rest at 0.5 mm.
-    #[must_use]
-    pub fn with_sequence(self) -> Self {
-        self.with_reference(Reference::Sequence {
-            initial_m: 0.5e-3,
-            steps: vec![
-                StepAt {
-                    at_s: 0.3,
-                    to_m: 3.5e-3,
-                },
-                StepAt {
-                    at_s: 0.6,
-                    to_m: 1.5e-3,
-                },
-                StepAt {
-                    at_s: 0.9,
-                    to_m: 3.0e-3,
-                },
-            ],
-        })
-        .with_initial(Initial {
-            x_m: 0.5e-3,
-            v_mps: 0.0,
-            i_a: 0.0,
-        })
-        .with_duration_s(1.2)
+    /// The product's actuator at `rate_hz` on `supply_v` on its evaluation sequence
+    /// ([`crate::actuator::scenario`]: from rest at the open stop, 0.5 mm, then 3.5 mm at
+    /// 0.3 s, 1.5 mm at 0.6 s and 3 mm at 0.9 s; 1.2 s in all).
+    ///
+    /// # Errors
+    /// A rate or supply the derivation refuses, by name.
+    #[allow(clippy::cast_possible_truncation)]
+    pub fn product_sequence(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
+        let act = Actuator::PRODUCT
+            .with_rate_hz(rate_hz as f32)
+            .with_supply_v(supply_v as f32);
+        crate::actuator::scenario(&format!("product-sequence-{rate_hz}hz-{supply_v}v"), &act)
     }
 
     /// ISR rate \[Hz\] (the controller's).
@@ -822,11 +822,15 @@ impl Scenario {
         f64::from(self.controller.rate_hz)
     }
 
-    /// Sets the duration \[s\] and drops the probe times that fall outside it.
+    /// Sets the duration \[s\] and drops the probe times and the steps of a sequence
+    /// that fall outside it.
     #[must_use]
     pub fn with_duration_s(mut self, duration_s: f64) -> Self {
         self.duration_s = duration_s;
         self.probes_s.retain(|t| *t < duration_s);
+        if let Reference::Sequence { steps, .. } = &mut self.reference {
+            steps.retain(|s| s.at_s < duration_s);
+        }
         self
     }
 
@@ -1039,11 +1043,11 @@ mod tests {
 
     #[test]
     fn a_converter_delay_the_controller_does_not_know_is_refused() {
-        let mut sc = Scenario::product(20e3, 24.0);
+        let mut sc = Scenario::product(20e3, 24.0).unwrap();
         sc.controller.delay_ticks = 0;
         let e = sc.validate().unwrap_err();
         assert!(e.to_string().contains("controller.delay_ticks"), "{e}");
-        assert!(Scenario::product(20e3, 24.0).validate().is_ok());
+        assert!(Scenario::product(20e3, 24.0).unwrap().validate().is_ok());
     }
 
     #[test]

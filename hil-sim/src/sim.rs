@@ -39,6 +39,10 @@ pub struct Sample {
     pub x_est_m: f64,
     /// Observer velocity estimate \[m/s\].
     pub v_est_mps: f64,
+    /// Observer's disturbance estimate (what the model does not explain) \[m/s^2\].
+    pub d_est_mps2: f64,
+    /// The shaped reference the law followed at this tick \[m\].
+    pub r_shaped_m: f64,
     /// Law voltage command before saturation \[V\].
     pub u_cmd_v: f64,
     /// Law desired current \[A\].
@@ -239,6 +243,8 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
             vbus_v: now.vbus_v,
             x_est_m: f64::from(status.estimate.x_m),
             v_est_mps: f64::from(status.estimate.v_mps),
+            d_est_mps2: f64::from(status.estimate.d_mps2),
+            r_shaped_m: f64::from(status.reference.x_m),
             u_cmd_v: f64::from(status.output.u_v),
             i_d_a: f64::from(status.output.i_d_a),
             duty: status.drive.duty,
@@ -450,6 +456,19 @@ impl Stepper {
             psi_wb: self.plant.flux_linkage_of(s),
             vbus_v: self.supply.bus_voltage_v(&self.last, i),
         }
+    }
+
+    /// Puts the plant in the state of `sample` (position, velocity and current or flux
+    /// linkage, as the force model carries it) at the start of period `k`: for measuring
+    /// the error of one period alone.
+    pub fn resync(&mut self, k: u64, sample: &Sample) {
+        let e = match self.plant.force {
+            crate::plant::ForceModel::Frozen => sample.i_a,
+            crate::plant::ForceModel::EnergyConsistent => sample.psi_wb,
+        };
+        self.state.y = [sample.x_m, sample.v_mps, e, 0.0, 0.0, 0.0];
+        self.k = k;
+        self.last = self.supply.coast(sample.i_a, self.diode_drop_v);
     }
 
     /// The true plant.

@@ -86,8 +86,7 @@ pub fn table(rows: &[Row]) -> Table {
 
 /// The figure: log10 of error, ripple and peak current against the ISR rate, one line per
 /// law on the 24 V supply, the targets dashed.
-fn figure(rows: &[Row]) -> Figure {
-    let t = Targets::product(24.0);
+fn figure(rows: &[Row], t: &Targets) -> Figure {
     let panel = |label: &str, target: f64, f: &dyn Fn(&Row) -> f64| {
         let mut p = Panel::new("ISR rate [kHz]", label);
         for (k, law) in LAWS.iter().enumerate() {
@@ -130,12 +129,18 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     );
     let rows = grid(args.duration_s)?;
     let table = table(&rows);
+    let t = Targets::for_scenario(&crate::compare::scenario("discrete", 20e3, 24.0)?);
     writeln!(
         out,
-        "targets: settling <= 0.2 s, overshoot <= 0.5 %, |error| <= 0.1 %, ripple <= 0.2 A, \
-         current <= 12 A, |u| <= supply; step 1 -> 3 mm, {} s, nominal plant, converter noise \
-         and one sample of delay\n",
-        sig(args.duration_s, 3)
+        "the product's actuator (physical convention), step 1 -> 3 mm, {} s, nominal plant, \
+         converter noise and one sample of delay; targets: settling <= {} s, overshoot <= {} %, \
+         |error| <= {} %, ripple <= {} A, current <= {} A, |u| <= supply\n",
+        sig(args.duration_s, 3),
+        sig(t.settling_max_s(), 3),
+        sig(t.overshoot_pct, 3),
+        sig(t.steady_error_pct, 3),
+        sig(t.ripple_pp_a, 3),
+        sig(t.current_a, 3),
     )?;
     write!(out, "{}", table.to_text())?;
     let dir = args.output.dir("compare");
@@ -145,7 +150,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     table.write_csv(&path)?;
     files.push(path);
     let path = dir.join("compare.png");
-    figure(&rows).write_png(&path)?;
+    figure(&rows, &t).write_png(&path)?;
     files.push(path);
     super::list_files(out, &files)?;
     Ok(Outcome { rows, table, files })

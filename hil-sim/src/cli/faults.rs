@@ -1,4 +1,5 @@
-//! `hil-sim faults`: the fault-injection scenarios ([`crate::faults`]): for each injected
+//! `hil-sim faults [ACTUATOR]`: the fault-injection scenarios ([`crate::faults`]) on an
+//! actuator (a family member or a file; the product's by default): for each injected
 //! fault, the fault the supervisor latched, how long after the injection, the peak coil
 //! current against the trip level, and whether the bridge coasted from then on.
 
@@ -11,12 +12,15 @@ use crate::report::{self, sig, Table};
 /// Arguments of `faults`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct Args {
-    /// ISR rate [Hz].
-    #[arg(long, default_value_t = 20_000.0)]
-    pub rate_hz: f64,
-    /// Supply [V].
-    #[arg(long, default_value_t = 24.0)]
-    pub supply_v: f64,
+    /// A family member's name (see `hil-sim actuators`) or an actuator file.
+    #[arg(default_value = "product")]
+    pub actuator: String,
+    /// ISR rate [Hz] [default: the actuator's].
+    #[arg(long)]
+    pub rate_hz: Option<f64>,
+    /// Supply [V] [default: the actuator's].
+    #[arg(long)]
+    pub supply_v: Option<f64>,
     /// Output folder [default: out/faults].
     #[command(flatten)]
     pub output: super::Output,
@@ -67,18 +71,29 @@ pub fn table(cases: &[Case]) -> Table {
 /// # Errors
 /// A scenario that does not validate; a failed write.
 pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
-    let cases = run_cases(args.rate_hz, args.supply_v)?;
+    let (name, mut act) = crate::actuator::load(&args.actuator)?;
+    #[allow(clippy::cast_possible_truncation)]
+    if let Some(r) = args.rate_hz {
+        act = act.with_rate_hz(r as f32);
+    }
+    #[allow(clippy::cast_possible_truncation)]
+    if let Some(v) = args.supply_v {
+        act = act.with_supply_v(v as f32);
+    }
+    let base = crate::actuator::scenario(&name, &act)?;
+    let cases = run_cases(&base)?;
     let table = table(&cases);
     writeln!(
         out,
-        "fault injection at {} kHz on {} V: each must be named within {} us, the current stay \
-         at or below the trip level, the bridge coast from then on\n",
-        sig(args.rate_hz / 1e3, 3),
-        sig(args.supply_v, 3),
+        "fault injection on `{name}` at {} kHz on {} V: each must be named within {} us of \
+         its injection, the current stay at or below the trip level, the bridge coast from \
+         then on\n",
+        sig(base.rate_hz() / 1e3, 3),
+        sig(base.supply.voltage_v, 3),
         sig(DEADLINE_S * 1e6, 4)
     )?;
     write!(out, "{}", table.to_text())?;
-    let dir = args.output.dir("faults");
+    let dir = args.output.dir(&format!("{name}-faults"));
     report::create_dir(&dir)?;
     let path = dir.join("faults.csv");
     table.write_csv(&path)?;

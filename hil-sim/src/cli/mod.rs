@@ -12,10 +12,11 @@
 //! | (none), `paper` | the paper's example at 1 MHz and at 20 kHz: claims vs measured, figures |
 //! | `run <scenario>` | one scenario (embedded name or TOML file): metrics per segment, trace, figures |
 //! | `scenarios [name]` | lists the embedded scenarios, or prints one's TOML |
+//! | `actuators [name]` | lists the family of actuators, or prints one's file |
 //! | `montecarlo <scenario>` | draws plants from the uncertainty set: worst case of each metric, the product's targets, CSV of all draws |
 //! | `compare` | the three laws at 10, 20, 50 kHz and 24, 48, 150 V: table, CSV, figure |
-//! | `tune [scenario]` | designs the practical law's gains (Theorem 1, corner plants, minimax) |
-//! | `faults` | the fault-injection cases: fault named, detection time, peak current |
+//! | `tune [actuator]` | designs the practical law's gains for an actuator, writes its tuned file |
+//! | `faults [actuator]` | the fault-injection cases: fault named, detection time, peak current |
 //! | `golden` | records the golden traces the Cortex-M4F replays (`tests/golden/`) |
 
 use std::io::Write;
@@ -24,6 +25,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub mod actuators;
 pub mod compare;
 pub mod faults;
 pub mod golden;
@@ -55,6 +57,8 @@ pub enum Command {
     Run(run::Args),
     /// Lists the embedded scenarios, or prints the TOML of one.
     Scenarios(scenarios::Args),
+    /// Lists the family of actuators kept in the repository, or prints the file of one.
+    Actuators(actuators::Args),
     /// Runs a scenario over plants drawn from the uncertainty set, in parallel: the worst
     /// case of each metric, the product's targets, and a CSV of every draw.
     Montecarlo(montecarlo::Args),
@@ -121,7 +125,16 @@ pub fn dispatch(cli: Cli, out: &mut dyn Write) -> anyhow::Result<()> {
         Command::Scenarios(a) => scenarios::run(&a, out),
         Command::Montecarlo(a) => montecarlo::run(&a, out).map(drop),
         Command::Compare(a) => compare::run(&a, out).map(drop),
-        Command::Tune(a) => tune::run(&a, out).map(drop),
+        Command::Actuators(a) => actuators::run(&a, out),
+        Command::Tune(a) => {
+            let o = tune::run(&a, out)?;
+            anyhow::ensure!(
+                o.tuned.is_some(),
+                "no tuning meets every target for `{}`",
+                a.actuator
+            );
+            Ok(())
+        }
         Command::Faults(a) => faults::run(&a, out).map(drop),
         Command::Golden(a) => golden::run(&a, out).map(drop),
     }

@@ -153,14 +153,14 @@ pub fn worst_table(draws: &[Draw]) -> Table {
 pub fn targets_table(draws: &[Draw], t: &Targets) -> (Table, usize) {
     let misses: Vec<Vec<&'static str>> = draws
         .iter()
-        .map(|d| Worst::of([&d.metrics]).misses(t))
+        .map(|d| Worst::of([&d.metrics], t).misses(t))
         .collect();
-    let all = Worst::of_draws(draws);
+    let all = Worst::of_draws(draws, t);
     let count = |name: &str| misses.iter().filter(|m| m.contains(&name)).count();
     let mut table = Table::new(["target", "limit", "worst", "draws missing it"]);
     #[allow(clippy::cast_precision_loss)]
     for (label, key, limit, worst) in [
-        ("settling 2 % [s]", "settling", t.settling_s, all.settling_s),
+        ("settling / its target", "settling", 1.0, all.settling_ratio),
         (
             "overshoot [%]",
             "overshoot",
@@ -273,7 +273,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     let dir = args.output.dir(&format!("{}-montecarlo", sc.name));
     let uncertainty = match &sc.plant {
         TruePlant::Drawn { uncertainty, .. } => *uncertainty,
-        _ => Uncertainty::default(),
+        _ => Uncertainty::of(&sc.controller.plant),
     };
     let substeps = if let Some(n) = args.substeps {
         anyhow::ensure!(n > 0, "--substeps = 0: at least one RK4 step per period");
@@ -318,11 +318,17 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     )?;
     let worst = worst_table(&draws);
     write!(out, "\nworst case over the draws:\n{}", worst.to_text())?;
-    let (targets, failing) = targets_table(&draws, &Targets::product(sc.supply.voltage_v));
+    let t = Targets::for_scenario(&sc);
+    let (targets, failing) = targets_table(&draws, &t);
     write!(
         out,
-        "\nthe product's targets on every step segment (issue 4):\n{}{} of {} draws pass \
-         every target\n",
+        "\nthe targets on every step segment (settling target per segment: {} s):\n{}{} of \
+         {} draws pass every target\n",
+        t.settling_s
+            .iter()
+            .map(|v| sig(*v, 3))
+            .collect::<Vec<_>>()
+            .join(", "),
         targets.to_text(),
         draws.len() - failing,
         draws.len()

@@ -1,192 +1,277 @@
-//! `hil-sim tune <scenario>`: designs the practical law's gains for the scenario's actuator
-//! ([`crate::tune`]): Theorem 1 for every candidate, simulation on the corner plants of
-//! the uncertainty set at each ISR rate given, the minimax choice, and a Monte Carlo
-//! validation; writes the tuned scenario as TOML and every candidate as CSV.
+//! `hil-sim tune <actuator>`: designs the practical law's gains for an actuator
+//! ([`crate::tune`]): a search space from its time scales, Theorem 1 for every candidate,
+//! screening on the nominal plant, the corner plants of the uncertainty set at three
+//! interrupt rates, the minimax choice and a Monte Carlo validation. Writes the tuned
+//! actuator file (the input with a `[tuning]` section) and every candidate as CSV; when no
+//! candidate passes, says which target is out of reach, where and why, and exits with a
+//! failure.
 
 use std::io::Write;
+use std::path::PathBuf;
 
+use crate::actuator;
 use crate::report::{self, sig, Table};
-use crate::tune::{tune, Grid};
-use crate::{catalog, Scenario};
+use crate::tune::{self, Space};
 
 /// Arguments of `tune`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct Args {
-    /// The actuator and conditions: an embedded scenario's name or a TOML file (its
-    /// reference is what candidates are evaluated on).
-    #[arg(default_value = "product-sequence")]
-    pub scenario: String,
-    /// ISR rates to design for at once [Hz].
-    #[arg(long, value_delimiter = ',', default_values_t = [10_000.0, 20_000.0, 50_000.0])]
-    pub rates_hz: Vec<f64>,
-    /// Plants drawn to validate the choice, per rate.
+    /// A family member's name (see `hil-sim actuators`) or an actuator file.
+    #[arg(default_value = "product")]
+    pub actuator: String,
+    /// Interrupt rates to design for at once [Hz] [default: the actuator's own, 20 kHz and
+    /// the one of 10, 20, 25, 40 and 50 kHz nearest to the actuator's].
+    #[arg(long, value_delimiter = ',')]
+    pub rates_hz: Option<Vec<f64>>,
+    /// Plants drawn to validate a candidate, per rate.
     #[arg(long, default_value_t = 100)]
     pub validate: usize,
-    /// RK4 substeps per period for the search (1 is validated for the product's law).
+    /// RK4 substeps per period for the search.
     #[arg(long, default_value_t = 1)]
     pub substeps: u32,
-    /// Output folder [default: out/<scenario>-tune].
+    /// Where to write the tuned file [default: beside an input file as
+    /// `<stem>.tuned.toml`; for a family member, in the output folder].
+    #[arg(long)]
+    pub tuned: Option<PathBuf>,
+    /// Hide the progress messages.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Output folder [default: out/<actuator>-tune].
     #[command(flatten)]
     pub output: super::Output,
 }
 
-/// The same scenario at another ISR rate (the converter calibration and the observer
-/// bandwidth rule of the controller carry over).
-#[allow(clippy::cast_possible_truncation)]
-fn at_rate(sc: &Scenario, rate_hz: f64, substeps: u32) -> Scenario {
-    let mut s = sc.clone().with_substeps(substeps);
-    s.controller.rate_hz = rate_hz as f32;
-    s.name = format!("{}-{}khz", sc.name, rate_hz / 1e3);
-    s
+/// Control rates the board offers between 10 and 50 kHz (each divides TIM1's 84 MHz
+/// half-clock, so a centre-aligned period is a whole number of counts) \[Hz\].
+pub const BOARD_RATES_HZ: [f64; 5] = [10e3, 20e3, 25e3, 40e3, 50e3];
+
+/// The default rates: the actuator's own, 20 kHz (the rate the product's Monte Carlo
+/// and fault tables are run at), and the one of [`BOARD_RATES_HZ`] nearest to the
+/// actuator's own by ratio (the lower first on a tie): three rates, so that the gains hold
+/// when the rate moves to a neighbour.
+#[must_use]
+pub fn default_rates(own_hz: f64) -> Vec<f64> {
+    let mut out = vec![own_hz];
+    let reference = 20e3;
+    if (reference - own_hz).abs() > 0.5 {
+        out.push(reference);
+    }
+    let mut others: Vec<f64> = BOARD_RATES_HZ
+        .into_iter()
+        .filter(|r| out.iter().all(|o| (r - o).abs() > 0.5))
+        .collect();
+    others.sort_by(|a, b| (a / own_hz).ln().abs().total_cmp(&(b / own_hz).ln().abs()));
+    out.extend(others.into_iter().take(3 - out.len()));
+    out
 }
 
-/// Runs the tuning and writes its report; the tuned scenario.
+/// What `tune` chose and wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// The report.
+    pub report: tune::Report,
+    /// The tuned file's path, when a candidate passed.
+    pub tuned: Option<PathBuf>,
+    /// Seconds the search took.
+    pub seconds: f64,
+}
+
+/// Runs the tuning and writes its report.
 ///
 /// # Errors
-/// A scenario that cannot be loaded; no rate; a failed run or write.
-pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Option<Scenario>> {
-    anyhow::ensure!(
-        !args.rates_hz.is_empty(),
-        "--rates-hz: give at least one rate"
-    );
+/// An actuator that cannot be loaded; a failed run or write. Finding no candidate is not
+/// an error here (the outcome says so); the command line exits with a failure then.
+#[allow(clippy::too_many_lines)]
+pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     anyhow::ensure!(
         args.substeps > 0,
         "--substeps = 0: at least one RK4 step per period"
     );
-    let sc = catalog::load(&args.scenario)?;
-    let conditions: Vec<Scenario> = args
-        .rates_hz
-        .iter()
-        .map(|&r| at_rate(&sc, r, args.substeps))
-        .collect();
-    let grid = Grid::default();
+    anyhow::ensure!(
+        args.validate > 0,
+        "--validate = 0: a candidate is validated on at least one drawn plant"
+    );
+    let (name, act, source) = actuator::load_untuned(&args.actuator)?;
+    let own = f64::from(act.board.rate_hz);
+    let mut rates = args.rates_hz.clone().unwrap_or_else(|| default_rates(own));
+    anyhow::ensure!(!rates.is_empty(), "--rates-hz: give at least one rate");
+    // Screening happens at the actuator's own rate, first.
+    if let Some(k) = rates.iter().position(|r| (r - own).abs() < 0.5) {
+        rates.swap(0, k);
+    } else {
+        rates.insert(0, own);
+    }
+    let rate_min = rates.iter().copied().fold(f64::INFINITY, f64::min);
+    let space = Space::for_actuator(&act, rate_min)?;
+    let scales = act.time_scales().map_err(crate::Error::Actuator)?;
     writeln!(
         out,
-        "tuning the practical law for `{}` at {:?} Hz: alpha {:?}, observer {:?} rad/s at \
-         20 kHz, shaping margin {:?}; {} corner plants per rate",
-        sc.name,
-        args.rates_hz,
-        grid.alpha,
-        grid.observer_rad_s,
-        grid.margin,
-        crate::tune::corners(&sc.controller.plant).len()
+        "tuning `{name}` at {} kHz: mechanical frequency {} rad/s (natural {}, authority {}), \
+         coil slew {} rad/s, coil L/R {}-{} ms",
+        rates
+            .iter()
+            .map(|r| sig(r / 1e3, 3))
+            .collect::<Vec<_>>()
+            .join(", "),
+        sig(f64::from(scales.mechanical_rad_s()), 3),
+        sig(f64::from(scales.natural_rad_s), 3),
+        sig(f64::from(scales.authority_rad_s), 3),
+        sig(tune::slew_rad_s(&act), 3),
+        sig(f64::from(scales.coil_open_s) * 1e3, 3),
+        sig(f64::from(scales.coil_closed_s) * 1e3, 3),
+    )?;
+    writeln!(
+        out,
+        "search space: alpha {:?} 1/s, observer {:?} x alpha, margin {:?}; {} candidates, {} \
+         corner plants per rate",
+        space.alpha,
+        space.observer_per_alpha,
+        space.margin,
+        space.candidates(own).len(),
+        tune::corners(&act.plant()?).len()
     )?;
     let started = std::time::Instant::now();
-    let report = tune(&conditions, &grid, args.validate)?;
-    writeln!(
-        out,
-        "searched in {} s\n",
-        sig(started.elapsed().as_secs_f64(), 3)
-    )?;
+    let report = tune::tune(&name, &act, &rates, &space, args.substeps, args.validate)?;
+    let seconds = started.elapsed().as_secs_f64();
+    writeln!(out, "searched and validated in {} s\n", sig(seconds, 3))?;
 
     let mut t = Table::new([
         "alpha [1/s]",
         "observer [rad/s]",
         "margin",
+        "d follows force",
         "Theorem 1",
         "ball radius [m]",
+        "nominal/target",
         "worst/target",
-        "worst settling [s]",
-        "worst overshoot [%]",
-        "worst |error| [%]",
-        "worst ripple [A]",
+        "complete",
+        "validated",
+        "limiting",
     ]);
-    let mut sorted = report.evaluations.clone();
-    sorted.sort_by(|a, b| a.score.total_cmp(&b.score));
-    for e in &sorted {
-        let w = e
-            .worst
-            .iter()
-            .fold(crate::targets::Worst::default(), |mut acc, w| {
-                acc.settling_s = acc.settling_s.max(w.settling_s);
-                acc.overshoot_pct = acc.overshoot_pct.max(w.overshoot_pct);
-                acc.steady_error_pct = acc.steady_error_pct.max(w.steady_error_pct);
-                acc.ripple_pp_a = acc.ripple_pp_a.max(w.ripple_pp_a);
-                acc
-            });
+    for e in &report.evaluations {
         t.push([
             sig(e.candidate.alpha, 3),
             sig(e.candidate.observer_rad_s, 3),
             sig(e.candidate.margin, 2),
+            if e.candidate.follows_force {
+                "yes"
+            } else {
+                "no"
+            }
+            .into(),
             if e.theorem.holds() { "holds" } else { "fails" }.into(),
             e.theorem
                 .radius_optimised_m
                 .map_or_else(|| "-".into(), |r| sig(r, 3)),
-            sig(e.score, 3),
-            sig(w.settling_s, 3),
-            sig(w.overshoot_pct, 3),
-            sig(w.steady_error_pct, 3),
-            sig(w.ripple_pp_a, 3),
+            sig(e.screen, 3),
+            if e.worst.is_empty() {
+                "-".into()
+            } else {
+                sig(e.score, 3)
+            },
+            if e.complete { "yes" } else { "stopped" }.into(),
+            match e.validated {
+                Some(true) => "yes",
+                Some(false) => "no",
+                None => "-",
+            }
+            .into(),
+            e.limiting.as_ref().map_or_else(
+                || "-".into(),
+                |(what, rate)| format!("{what} at {} kHz", sig(rate / 1e3, 3)),
+            ),
         ]);
     }
-    let best: Vec<_> = t.rows.iter().take(8).cloned().collect();
     let mut head = Table::new(t.header.clone());
-    head.rows = best;
+    head.rows = t.rows.iter().take(8).cloned().collect();
     write!(
         out,
-        "best candidates (worst over corners and rates / target; <= 1 passes):\n{}",
+        "best candidates (worst over the corners and rates / target; <= 1 passes):\n{}",
         head.to_text()
     )?;
 
-    let dir = args.output.dir(&format!("{}-tune", sc.name));
+    let dir = args.output.dir(&format!("{name}-tune"));
     report::create_dir(&dir)?;
     let mut files = Vec::new();
     let path = dir.join("candidates.csv");
     t.write_csv(&path)?;
     files.push(path);
-    let tuned = match (&report.chosen, &report.settings) {
-        (Some(c), Some(s)) => {
-            let th = &c.theorem;
+    let mut tuned_path = None;
+    if let (Some(c), Some(tuned)) = (&report.chosen, &report.tuned) {
+        let th = &c.theorem;
+        writeln!(
+            out,
+            "\nchosen: alpha1 = alpha2 = {} 1/s, observer {} rad/s at {} kHz, shaping margin {} \
+             (worst metric at {} of its target)\nTheorem 1 (practical law): the force gain the \
+             loop meets spans {} to {}; a common Lyapunov matrix exists; ball radius {} m with \
+             the optimised P for a {} m/s^2 model error",
+            sig(c.candidate.alpha, 3),
+            sig(c.candidate.observer_rad_s, 3),
+            sig(own / 1e3, 3),
+            sig(c.candidate.margin, 2),
+            sig(c.score, 3),
+            sig(th.gamma_min, 4),
+            sig(th.gamma_max, 4),
+            th.radius_optimised_m
+                .map_or_else(|| "-".into(), |r| sig(r, 3)),
+            sig(th.delta_mps2, 3),
+        )?;
+        for ((w, targets), rate) in report.validation.iter().zip(&rates) {
             writeln!(
                 out,
-                "\nchosen: alpha1 = alpha2 = {} 1/s, observer {} rad/s at 20 kHz, shaping margin \
-                 {} (worst metric at {} of its target)\nTheorem 1 (practical law): the force \
-                 gain the loop meets spans {} to {}; a common Lyapunov matrix exists; ball \
-                 radius {} m with the optimised P for a {} m/s^2 model error ({})",
-                sig(c.candidate.alpha, 3),
-                sig(c.candidate.observer_rad_s, 3),
-                sig(c.candidate.margin, 2),
-                sig(c.score, 3),
-                sig(th.gamma_min, 4),
-                sig(th.gamma_max, 4),
-                th.radius_optimised_m
-                    .map_or_else(|| "-".into(), |r| sig(r, 3)),
-                sig(th.delta_mps2, 3),
-                th.radius_identity_m.map_or_else(
-                    || "V = |z|^2/2 alone does not prove it".into(),
-                    |r| format!("{} m with P = I", sig(r, 3))
-                )
+                "validation at {} kHz, {} drawn plants: settling {} s ({} of its target), \
+                 overshoot {} %, |error| {} %, ripple {} A (target {} A), peak {} A (rated {} A), \
+                 faults {}",
+                sig(rate / 1e3, 3),
+                w.runs,
+                sig(w.settling_s, 3),
+                sig(w.settling_ratio, 3),
+                sig(w.overshoot_pct, 3),
+                sig(w.steady_error_pct, 3),
+                sig(w.ripple_pp_a, 3),
+                sig(targets.ripple_pp_a, 3),
+                sig(w.current_a, 4),
+                sig(targets.current_a, 4),
+                w.faulted_runs
             )?;
-            for (w, rate) in report.validation.iter().zip(&args.rates_hz) {
-                writeln!(
-                    out,
-                    "validation at {} kHz, {} drawn plants: settling {} s, overshoot {} %, \
-                     |error| {} %, ripple {} A, peak {} A, faults {}",
-                    sig(rate / 1e3, 3),
-                    w.runs,
-                    sig(w.settling_s, 3),
-                    sig(w.overshoot_pct, 3),
-                    sig(w.steady_error_pct, 3),
-                    sig(w.ripple_pp_a, 3),
-                    sig(w.current_a, 4),
-                    w.faulted_runs
-                )?;
+        }
+        let path = args.tuned.clone().unwrap_or_else(|| {
+            if actuator::member(&args.actuator).is_some() {
+                dir.join(format!("{name}.tuned.toml"))
+            } else {
+                PathBuf::from(&args.actuator).with_file_name(format!("{name}.tuned.toml"))
             }
-            let mut tuned = sc.clone().with_controller(*s);
-            tuned.name = format!("{}-tuned", sc.name);
-            let path = dir.join("tuned.toml");
-            std::fs::write(&path, toml::to_string(&tuned)?)?;
-            files.push(path);
-            Some(tuned)
-        }
-        _ => {
-            writeln!(
-                out,
-                "\nno candidate meets every target on every corner plant"
-            )?;
-            None
-        }
-    };
+        });
+        let note = format!(
+            "written by `hil-sim tune` at {} kHz: worst metric at {} of its target",
+            rates
+                .iter()
+                .map(|r| sig(r / 1e3, 3))
+                .collect::<Vec<_>>()
+                .join(", "),
+            sig(c.score, 3)
+        );
+        let text = actuator::tuned_text(
+            &source,
+            &tuned.tuning.unwrap_or(c.candidate.tuning()),
+            &note,
+        );
+        // The file written must load and derive exactly the tuning chosen.
+        let back = actuator::parse(&text, &path.display().to_string())?;
+        anyhow::ensure!(
+            back == *tuned,
+            "the tuned file does not read back as written"
+        );
+        std::fs::write(&path, text)?;
+        files.push(path.clone());
+        tuned_path = Some(path);
+    } else if let Some(d) = &report.diagnosis {
+        writeln!(out, "\n{d}")?;
+    }
     super::list_files(out, &files)?;
-    Ok(tuned)
+    Ok(Outcome {
+        report,
+        tuned: tuned_path,
+        seconds,
+    })
 }

@@ -47,6 +47,10 @@ pub struct Row {
     pub x_est_m: f64,
     /// Observer's velocity estimate \[m/s\].
     pub v_est_mps: f64,
+    /// Observer's disturbance estimate \[m/s^2\].
+    pub d_est_mps2: f64,
+    /// Shaped reference \[m\].
+    pub r_shaped_m: f64,
     /// Bus voltage at the sample \[V\].
     pub vbus_v: f64,
     /// PWM compare value.
@@ -58,7 +62,7 @@ pub struct Row {
 }
 
 /// The CSV header of a decimated trace, in column order.
-pub const COLUMNS: [&str; 21] = [
+pub const COLUMNS: [&str; 23] = [
     "t_s",
     "r_m",
     "x_m",
@@ -76,6 +80,8 @@ pub const COLUMNS: [&str; 21] = [
     "i_d_a",
     "x_est_m",
     "v_est_mps",
+    "d_est_mps2",
+    "r_shaped_m",
     "vbus_v",
     "duty",
     "mode",
@@ -127,6 +133,8 @@ pub fn decimate(trace: &[Sample], every: usize) -> Vec<Row> {
                 i_d_a: s.i_d_a,
                 x_est_m: s.x_est_m,
                 v_est_mps: s.v_est_mps,
+                d_est_mps2: s.d_est_mps2,
+                r_shaped_m: s.r_shaped_m,
                 vbus_v: s.vbus_v,
                 duty: s.duty,
                 mode: mode_name::name(s.mode),

@@ -56,12 +56,13 @@ const TICK_GOAL: u32 = 300;
 /// Budget for one whole tick \[instructions\]: the run fails above it.
 ///
 /// The tick does not meet [`TICK_GOAL`], and this budget does not pretend it does: it
-/// sits about 6 % above the worst tick measured (1239, the practical law on the first
-/// tick of a shaped move, which plans the trajectory), so that any regression fails the
-/// run. The README lists the measured figures per case and per stage ("Instructions per
+/// sits about 5 % above the worst tick measured (1320, the practical law on the first
+/// tick of a shaped move, which plans the trajectory; the back-EMF in the electrical
+/// residual and the force-following disturbance added 81 to the 1239 before them), so
+/// that any regression fails the run. The README lists the measured figures per case and per stage ("Instructions per
 /// tick") and why the goal is out of reach of a single-rate tick: sense, limits, law and
 /// bridge alone take more than 300.
-const TICK_BUDGET: u32 = 1320;
+const TICK_BUDGET: u32 = 1390;
 
 #[inline(never)]
 fn whole(cfg: &Config, st: &mut State, b: &mut Bridge, frame: &Frame, setpoint_m: f32) -> Status {
@@ -158,7 +159,10 @@ fn main() -> ! {
     );
     let mut worst = 0;
     for case in CASES {
-        let settings = (case.settings)();
+        let settings = match (case.settings)() {
+            Ok(s) => s,
+            Err(e) => common::fail(format_args!("{}: settings do not derive: {}", case.name, e)),
+        };
         let cfg = match settings.build() {
             Ok(c) => c,
             Err(e) => common::fail(format_args!("{}: settings do not build: {}", case.name, e)),
@@ -281,6 +285,7 @@ fn main() -> ! {
                 i_a: m.i_a,
                 r_m: s.reference.x_m,
                 r_v_mps: s.reference.v_mps,
+                v_mps: s.estimate.v_mps,
             };
             let t0 = ctr.now();
             let f = monitor(

@@ -197,7 +197,10 @@ fn main() -> ! {
     );
     ensure!(clock_hz > 1_000_000, "SysTick clock {} Hz", clock_hz);
     for case in CASES {
-        let settings = (case.settings)();
+        let settings = match (case.settings)() {
+            Ok(s) => s,
+            Err(e) => common::fail(format_args!("{}: settings do not derive: {}", case.name, e)),
+        };
         // Under -icount shift=0 one instruction is 1 ns: the period in TIM2 counts.
         let period = (1e9 / settings.rate_hz) as u32;
         let o = run(&mut cp.SYST, clock_hz, &settings, TICKS, false);
@@ -231,7 +234,10 @@ fn main() -> ! {
     }
 
     // The overrun check can fail: ticks longer than a period are all reported.
-    let settings = (CASES[0].settings)();
+    let settings = match (CASES[0].settings)() {
+        Ok(s) => s,
+        Err(e) => common::fail(format_args!("settings do not derive: {}", e)),
+    };
     let o = run(&mut cp.SYST, clock_hz, &settings, SLOW_TICKS, true);
     outln!(
         "slow ticks (+{} instructions each): {} of {} reported as overruns; start-to-start {}..{} ns",

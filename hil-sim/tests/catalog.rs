@@ -17,10 +17,10 @@ fn embedded_files_equal_their_constructors() {
             "paper-20khz",
             Scenario::paper(20_000.0).with_current_trip_a(100.0),
         ),
-        ("product", Scenario::product(20_000.0, 24.0)),
+        ("product", Scenario::product(20_000.0, 24.0).unwrap()),
         (
             "product-sequence",
-            Scenario::product(20_000.0, 24.0).with_sequence(),
+            Scenario::product_sequence(20_000.0, 24.0).unwrap(),
         ),
     ];
     assert_eq!(mirrors.len(), EMBEDDED.len());
@@ -54,7 +54,7 @@ fn left_out_sections_take_their_defaults() {
         }
     }
     let sc = catalog::parse(&lean, "lean").unwrap();
-    let product = Scenario::product(20_000.0, 24.0);
+    let product = Scenario::product(20_000.0, 24.0).unwrap();
     assert_eq!(sc.initial, product.initial); // at rest at the step's from_m
     assert_eq!(sc.plant, product.plant); // the controller's nominal plant
     assert_eq!(sc.bridge, product.bridge);

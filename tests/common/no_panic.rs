@@ -33,7 +33,7 @@ pub fn exercise() -> u32 {
     let mut acc = 0u32;
     let mut bridge = crate::common::bridge(black_box(crate::common::FIRMWARE_MAX_DUTY));
     for case in CASES {
-        let Ok(cfg) = (case.settings)().build() else {
+        let Ok(cfg) = (case.settings)().and_then(|s| s.build()) else {
             continue;
         };
         // The optimiser must not know which law, which limits, which calibration.

@@ -107,7 +107,7 @@ impl Plant {
                 / l;
             let a = (0.5 * self.i_a * self.i_a * mu
                 - p.friction_n_s_per_m * self.v_mps
-                - p.spring_n_per_m * self.x_m)
+                - p.spring_force_n(self.x_m))
                 / p.mass_kg;
             self.i_a += h * di;
             self.v_mps += h * a;

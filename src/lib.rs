@@ -23,6 +23,7 @@
 //! | [`supervisor`] | limits, latched faults, safe state |
 //! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
 //! | [`control`] | the configuration, the state and the one `tick` |
+//! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
 //! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
 //!
 //! ## Guarantees
@@ -86,6 +87,7 @@
 pub mod bridge;
 pub mod config;
 pub mod control;
+pub mod guard;
 pub mod law;
 pub mod math;
 pub mod model;

@@ -1,4 +1,4 @@
-//! Fault injection (issue 6): one scenario per fault, the fault the supervisor must name,
+//! Fault injection: one scenario per fault, the fault the supervisor must name,
 //! how fast it does, and how high the coil current gets.
 //!
 //! Every case runs the product's realistic default ([`Scenario::product`]: 20 kHz, 24 V,
@@ -8,12 +8,19 @@
 //!
 //! Most faults are injected while holding at 3 mm. A frozen sensor reading, though, looks
 //! exactly like a steady state until the quantity must change, so those two are injected
-//! where it must: the position sensor at the fastest point of a 3 mm move (the issue's
-//! sequence, 0.5 -> 3.5 mm: the reference moves 51 um per ms there; a reading that stays
+//! where it must: the position sensor at the fastest point of a 3 mm move (the step
+//! sequence's 0.5 -> 3.5 mm: the reference moves 51 um per ms there; a reading that stays
 //! within its noise band for 0.7 ms while a fast reference moves 21 um is stuck), the current sensor
 //! during the start-up current ramp (the current rises by about 0.5 A per tick). Frozen in a steady phase, the current reading
 //! is found once the loop has wound up against it: measured 3.1 ms after a freeze in the
 //! middle of the move, where the current only changes by milliamperes per tick.
+//!
+//! Two cases exercise the firmware's guard ([`ema::guard`]) and window watchdog
+//! ([`crate::hal::Watchdog`]): four missed interrupts are seen by the guard when the
+//! interrupt runs again (the gap is five periods), and an interrupt that stops for good,
+//! while the start-up ramp drives the coil, is ended by the watchdog, which coasts the
+//! bridge at the first sample instant at least its early-wakeup time (292.6 us at 20 kHz)
+//! after the last feed.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -164,6 +171,13 @@ pub fn cases(rate_hz: f64, supply_v: f64) -> Vec<Case> {
             "4 interrupts do not run",
             holding,
             Injected::MissedDeadlines { ticks: 4 },
+            Fault::Overrun,
+        ),
+        case(
+            "tick stops",
+            "the interrupt stops in the start-up ramp",
+            ramping,
+            Injected::MissedDeadlines { ticks: u32::MAX },
             Fault::Overrun,
         ),
     ];

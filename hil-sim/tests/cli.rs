@@ -299,9 +299,9 @@ fn faults_prints_and_writes_the_table() {
     };
     let mut printed = Vec::new();
     let o = faults::run(&args, &mut printed).unwrap();
-    assert_eq!(o.cases.len(), 11);
+    assert_eq!(o.cases.len(), 12);
     assert!(o.cases.iter().all(hil_sim::faults::Outcome::pass));
-    assert_eq!(csv_rows(&out.join("faults.csv")), 11);
+    assert_eq!(csv_rows(&out.join("faults.csv")), 12);
 }
 
 /// A two-point search at one rate picks the candidate that passes and writes the tuned

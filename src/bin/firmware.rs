@@ -47,6 +47,6 @@ mod hw;
 #[cfg(not(target_os = "none"))]
 fn main() {
     eprintln!(
-        "the firmware runs on the STM32F405: build it with `cargo fw`, flash it with `cargo flash`"
+        "the firmware runs on the STM32F405: build it with `cargo fw`, flash and run it with `cargo fw-run`"
     );
 }

@@ -3,34 +3,61 @@
 //! | signal | pin | peripheral | note |
 //! |---|---|---|---|
 //! | bridge PWM | PA8 | TIM1_CH1 (AF1) | center-aligned, 20 kHz, active high = bridge on |
-//! | bridge direction (PH) | PC8 | GPIO push-pull | high = forward |
-//! | bridge enable (EN) | PC9 | GPIO push-pull | low = coast; **the board must pull it down** so the bridge coasts through reset, boot and a watchdog reset, while the pin floats |
+//! | bridge enable (EN) | PA9 | TIM1_CH2 (AF1) | low = coast; a timer output, so that it drops with the timer's main output (break, debugger halt, fault handlers) |
+//! | bridge direction (PH) | PA10 | TIM1_CH3 (AF1) | high = forward; a timer output, so that it changes with the duty at the period boundary |
+//! | bridge fault (BKIN) | PB12 | TIM1_BKIN (AF1) | active low: the driver's fault output and the current comparator, open drain, wired together |
 //! | position sensor | PC0 | ADC123_IN10 | 5-95 % of the range over the stroke ([`ema::sense::POSITION_M_PER_CODE`]) |
 //! | coil current | PC1 | ADC123_IN11 | bidirectional, mid-scale at 0 A ([`ema::sense::CURRENT_A_PER_CODE`]) |
 //! | bus voltage | PC2 | ADC123_IN12 | 22:1 divider ([`ema::sense::VBUS_V_PER_CODE`]) |
 //! | crystal | PH0/PH1 | HSE | 8 MHz |
 //! | debug | PA13/PA14 | SWD | probe-rs, defmt over RTT |
 //!
+//! What the board must provide (the firmware relies on it):
+//!
+//! * **Pull-downs on PA8, PA9 and PA10** (10 kOhm): through reset and boot, and whenever a
+//!   watchdog reset has released the pins, they float; the pull-down on EN keeps the bridge
+//!   coasting then. While the firmware runs, the three lines are timer outputs whose idle
+//!   level is low: the timer drives them low whenever its main output is off.
+//! * **The break input, PB12, pulled up** (4.7 kOhm to 3.3 V; the internal pull-up is also
+//!   on) and pulled low by any of: the driver's fault output (open drain, active low:
+//!   over-current, over-temperature, under-voltage) and a comparator on the current shunt
+//!   that trips at [`BREAK_CURRENT_A`] in either direction (open drain, active low). The
+//!   timer's break acts on the outputs without software and without a clock (RM0090
+//!   section 17.3.12): main output off, all three lines driven low; it stays off until a
+//!   reset (automatic re-enable is off), and the next tick latches
+//!   `Fault::HardwareTrip`.
+//! * **A driver that accepts a direction change while enabled** (its own dead time, as
+//!   integrated EN/PH drivers have): the direction changes at the period boundary, in the
+//!   middle of the off-time, so the driver is braking then, except at a duty of 100 %.
+//!
 //! Timing of one control period (50 us, 8400 CPU cycles):
 //!
 //! ```text
 //! TIM1 counter   0 /\ 4200 /\ 0          up/down, 168 MHz: 2 x 4200 counts = 50 us
 //! PWM (mode 1)  ‾‾|____|‾‾‾‾|____|‾‾     high while CNT < CCR1: pulses centred on CNT = 0
-//! update event        ^ top               RCR = 1: one update per period, at the top
-//!  -> TRGO -> ADC1 injected: current, position, bus (3 x 1.9 us)
-//!  -> JEOC interrupt -> tick -> CCR1 (preloaded: applies at the next top)
+//! compare 4          ^ CNT = 3632 counting up (PWM mode 2: OC4REF rises) -> TRGO
+//!  -> ADC1 injected: position, current, bus (3 x 1.9 us), the current's sampling
+//!     phase ending exactly at the top of the count, the sequence 3.4 us before to
+//!     2.5 us after it
+//!  -> JEOC interrupt -> tick -> CCR1..CCR3 (preloaded)
+//! update event            ^ top           RCR = 1: one update per period, at the top:
+//!                                         duty, direction and enable change together
 //! ```
 //!
 //! Sampling at the top of the count is sampling in the middle of the PWM off-time: with a
 //! triangular ripple that is the period's mean current, and it is as far from both
-//! switching edges as the period allows.
+//! switching edges as the period allows. The conversions are placed there by the compare
+//! value ([`ADC_TRIGGER_COMPARE`]), not by which overflow the update event lands on; start-up
+//! checks both that the update event comes at the top and that the conversions end just
+//! after it, and refuses to run otherwise.
 //!
 //! The sensor scales are the core's constants ([`ema::sense`]); only the current zero is
 //! measured here, at start, with the bridge off.
 
 use ema::config;
 use ema::control::Settings;
-use ema::sense::{Calibration, CURRENT_ZERO_CODE};
+use ema::guard::{Watchdog, WATCHDOG_QUIET_PERIODS};
+use ema::sense::{Calibration, Frame, CURRENT_ZERO_CODE};
 
 /// Crystal \[Hz\].
 pub const HSE_HZ: u32 = 8_000_000;
@@ -73,14 +100,97 @@ pub const ADC_CLK_HZ: u32 = PCLK2_HZ / ADC_PRESCALER;
 pub const ADC_SAMPLE_CYCLES: u32 = 28;
 /// Conversion time of a 12-bit result after sampling \[ADC cycles\].
 pub const ADC_CONVERSION_CYCLES: u32 = 12;
-/// ADC channel of the coil current (converted first: nearest the sampling instant).
+/// ADC channel of the coil current.
 pub const CURRENT_CHANNEL: u8 = 11;
 /// ADC channel of the position sensor.
 pub const POSITION_CHANNEL: u8 = 10;
 /// ADC channel of the bus-voltage divider.
 pub const VBUS_CHANNEL: u8 = 12;
-/// The injected sequence, in conversion order; results land in JDR1, JDR2, JDR3.
-pub const INJECTED_SEQUENCE: [u8; 3] = [CURRENT_CHANNEL, POSITION_CHANNEL, VBUS_CHANNEL];
+/// The injected sequence, in conversion order: ADC channel and what it measures; results
+/// land in JDR1, JDR2, JDR3. The one table both the set-up ([`INJECTED_SEQUENCE`],
+/// [`injected_sequence`]) and the readout ([`frame`]) use. The current is converted in the
+/// middle, so that the sequence sits around the sampling instant of the current
+/// ([`ADC_TRIGGER_COMPARE`]).
+pub const INJECTED: [(u8, Signal); 3] = [
+    (POSITION_CHANNEL, Signal::Position),
+    (CURRENT_CHANNEL, Signal::Current),
+    (VBUS_CHANNEL, Signal::Vbus),
+];
+/// The channels of [`INJECTED`], in conversion order.
+pub const INJECTED_SEQUENCE: [u8; 3] = [INJECTED[0].0, INJECTED[1].0, INJECTED[2].0];
+/// What an injected conversion measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Signal {
+    /// Position sensor.
+    Position,
+    /// Coil current.
+    Current,
+    /// Bus-voltage divider.
+    Vbus,
+}
+
+/// Where `signal` sits in [`INJECTED`] (the table's length if it is absent).
+#[must_use]
+pub const fn slot(signal: Signal) -> usize {
+    let mut k = 0;
+    while k < INJECTED.len() {
+        if INJECTED[k].1 as u8 == signal as u8 {
+            return k;
+        }
+        k += 1;
+    }
+    INJECTED.len()
+}
+
+/// The frame of one sequence from its results `[JDR1, JDR2, JDR3]`, through [`INJECTED`].
+#[inline(always)]
+#[must_use]
+pub fn frame(results: [u16; 3]) -> Frame {
+    let mut f = Frame::default();
+    let [(_, a), (_, b), (_, c)] = INJECTED;
+    let [ra, rb, rc] = results;
+    for (signal, code) in [(a, ra), (b, rb), (c, rc)] {
+        match signal {
+            Signal::Position => f.position = code,
+            Signal::Current => f.current = code,
+            Signal::Vbus => f.vbus = code,
+        }
+    }
+    f
+}
+
+/// Slot of the current in the sequence.
+pub const CURRENT_SLOT: u32 = slot(Signal::Current) as u32;
+/// Injected trigger latency, from the trigger edge to the start of the first sampling
+/// phase \[ADC cycles\] (datasheet: `t_lat(inj)` at most 3 ADC clock cycles).
+pub const ADC_TRIGGER_LATENCY_CYCLES: u32 = 3;
+/// TIM1 counts per ADC cycle.
+pub const TIM1_COUNTS_PER_ADC_CYCLE: u32 = TIM1_CLK_HZ / ADC_CLK_HZ;
+/// TIM1 counts from the trigger to the end of the current's sampling phase (when its
+/// sample-and-hold opens): the latency, the conversions before it, its own sampling.
+pub const ADC_TRIGGER_LEAD_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
+    + CURRENT_SLOT * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES)
+    + ADC_SAMPLE_CYCLES)
+    * TIM1_COUNTS_PER_ADC_CYCLE;
+/// TIM1 compare 4: its reference rises (PWM mode 2) when the counter passes this value
+/// counting up, and on TRGO that edge triggers the sequence; the current's sampling phase
+/// then ends exactly at the top of the count, the middle of the off-time.
+pub const ADC_TRIGGER_COMPARE: u32 = PWM_ARR - ADC_TRIGGER_LEAD_COUNTS;
+/// TIM1 counts from the top of the count to the end of the sequence (the interrupt).
+pub const ADC_END_AFTER_TOP_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
+    + 3 * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES))
+    * TIM1_COUNTS_PER_ADC_CYCLE
+    - ADC_TRIGGER_LEAD_COUNTS;
+/// Highest duty \[per mille\] whose off-time holds the whole sequence, trigger to last
+/// conversion: above it, a switching edge falls inside a conversion.
+pub const SEQUENCE_IN_OFF_TIME_MAX_PERMILLE: u32 = 1000
+    - ((if ADC_TRIGGER_LEAD_COUNTS > ADC_END_AFTER_TOP_COUNTS {
+        ADC_TRIGGER_LEAD_COUNTS
+    } else {
+        ADC_END_AFTER_TOP_COUNTS
+    }) * 1000)
+        .div_ceil(PWM_ARR);
+
 /// Time from the trigger to the end of the sequence \[ns\].
 pub const ADC_SEQUENCE_NS: u32 =
     3 * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * 1_000 / (ADC_CLK_HZ / 1_000_000);
@@ -89,12 +199,12 @@ pub const ADC_SEQUENCE_NS: u32 =
 pub const PWM_PORT: char = 'A';
 /// Pin number of the bridge PWM.
 pub const PWM_PIN: u8 = 8;
-/// Port of the bridge direction pin.
-pub const DIR_PORT: char = 'C';
+/// Port of the bridge direction pin (TIM1_CH3 in alternate function 1).
+pub const DIR_PORT: char = 'A';
 /// Pin number of the bridge direction.
-pub const DIR_PIN: u8 = 8;
-/// Port of the bridge enable pin.
-pub const EN_PORT: char = 'C';
+pub const DIR_PIN: u8 = 10;
+/// Port of the bridge enable pin (TIM1_CH2 in alternate function 1).
+pub const EN_PORT: char = 'A';
 /// Pin number of the bridge enable.
 pub const EN_PIN: u8 = 9;
 
@@ -103,6 +213,27 @@ pub const EN_PIN: u8 = 9;
 /// tick leaves the last duty on for at most a few milliseconds before the reset coasts
 /// the bridge (EN pull-down).
 pub const WATCHDOG_TIMEOUT_MS: u32 = 2;
+
+/// Port of the break input (TIM1_BKIN in alternate function 1).
+pub const BREAK_PORT: char = 'B';
+/// Pin number of the break input.
+pub const BREAK_PIN: u8 = 12;
+/// Trip level of the board's comparator on the current shunt, either direction \[A\]:
+/// above the software trip (13.2 A with the default settings) plus half the largest PWM
+/// ripple (about 2.8 A, at the stroke end at 20 kHz), inside the current channel's
+/// +-16.5 A.
+pub const BREAK_CURRENT_A: f32 = 16.0;
+
+/// Longest time from a tick that stops to a coasting bridge \[ns\].
+pub const STALL_TO_COAST_MAX_NS: u32 = 500_000;
+/// One control period \[ns\].
+pub const CONTROL_PERIOD_NS: u32 = 1_000_000_000 / CONTROL_RATE_HZ;
+/// The window watchdog, on APB1 without prescaler: quiet for
+/// [`WATCHDOG_QUIET_PERIODS`] control periods after a feed (on-time ticks feed less than
+/// two periods apart), its early-wakeup interrupt (which coasts the bridge) at most
+/// 292.6 us after the last feed, its reset at most 390.1 us after it (20 kHz).
+pub const WINDOW_WATCHDOG: Watchdog =
+    Watchdog::at_least(PCLK1_HZ, WATCHDOG_QUIET_PERIODS * CONTROL_PERIOD_NS);
 
 /// Conversions discarded before measuring the current zero (ADC and sensor settling).
 pub const ZERO_SETTLE_SAMPLES: u32 = 64;
@@ -131,6 +262,24 @@ const _: () = {
     // The conversions end early in the period: the tick has over 40 us left.
     assert!(ADC_SEQUENCE_NS < 10_000);
     assert!(SYSCLK_HZ % HSE_HZ == 0);
+    // The sequence: every signal in it exactly once, placed around the top of the count.
+    assert!(slot(Signal::Position) < 3 && slot(Signal::Current) < 3 && slot(Signal::Vbus) < 3);
+    assert!(slot(Signal::Position) != slot(Signal::Current));
+    assert!(slot(Signal::Position) != slot(Signal::Vbus));
+    assert!(slot(Signal::Current) != slot(Signal::Vbus));
+    assert!(TIM1_CLK_HZ % ADC_CLK_HZ == 0);
+    assert!(ADC_TRIGGER_LEAD_COUNTS < PWM_ARR / 2);
+    // The interrupt comes after the top: the tick's writes all wait for the next one.
+    assert!(ADC_END_AFTER_TOP_COUNTS > 0 && ADC_END_AFTER_TOP_COUNTS < PWM_ARR / 2);
+    // The window watchdog: quiet while on-time ticks feed it, coasting well within the
+    // stall limit, by its interrupt or, with interrupts masked, by its reset.
+    assert!(WINDOW_WATCHDOG.early_wakeup_min_ns() >= WATCHDOG_QUIET_PERIODS * CONTROL_PERIOD_NS);
+    assert!(WINDOW_WATCHDOG.early_wakeup_max_ns() <= STALL_TO_COAST_MAX_NS);
+    assert!(WINDOW_WATCHDOG.reset_max_ns() <= STALL_TO_COAST_MAX_NS);
+    assert!(WINDOW_WATCHDOG.counts() < Watchdog::MAX_COUNTS);
+    // The comparator trips inside the current channel's full scale (2047 codes either side
+    // of mid-scale), so the converter sees what tripped it.
+    assert!(BREAK_CURRENT_A < 2047.0 * ema::sense::CURRENT_A_PER_CODE);
 };
 
 /// ADC_JSQR for an injected sequence of three channels. With JL = 2 (three conversions)
@@ -180,9 +329,64 @@ mod tests {
         assert_eq!(injected_sequence([7, 3, 3]) | 0b00010, rm);
         let ours = injected_sequence(INJECTED_SEQUENCE);
         assert_eq!((ours >> 20) & 3, 2);
-        assert_eq!((ours >> 5) & 31, u32::from(CURRENT_CHANNEL));
-        assert_eq!((ours >> 10) & 31, u32::from(POSITION_CHANNEL));
+        assert_eq!((ours >> 5) & 31, u32::from(POSITION_CHANNEL));
+        assert_eq!((ours >> 10) & 31, u32::from(CURRENT_CHANNEL));
         assert_eq!((ours >> 15) & 31, u32::from(VBUS_CHANNEL));
+    }
+
+    #[test]
+    fn the_readout_follows_the_same_table_as_the_set_up() {
+        // JDRn holds the n-th conversion: each result lands in the field of the signal
+        // the table names for that slot.
+        let f = frame([100, 2048, 1354]);
+        assert_eq!(INJECTED_SEQUENCE, [10, 11, 12]);
+        assert_eq!((f.position, f.current, f.vbus), (100, 2048, 1354));
+        for (k, (channel, signal)) in INJECTED.iter().enumerate() {
+            let mut results = [0; 3];
+            results[k] = 7;
+            let f = frame(results);
+            let got = match signal {
+                Signal::Position => f.position,
+                Signal::Current => f.current,
+                Signal::Vbus => f.vbus,
+            };
+            assert_eq!(got, 7);
+            assert_eq!(
+                (injected_sequence(INJECTED_SEQUENCE) >> (5 + 5 * k)) & 31,
+                u32::from(*channel)
+            );
+        }
+    }
+
+    #[test]
+    fn the_conversions_sit_around_the_top_of_the_count() {
+        assert_eq!(TIM1_COUNTS_PER_ADC_CYCLE, 8);
+        // Current second: 3 + 40 + 28 ADC cycles from the trigger to its hold.
+        assert_eq!(CURRENT_SLOT, 1);
+        assert_eq!(ADC_TRIGGER_LEAD_COUNTS, 568);
+        assert_eq!(ADC_TRIGGER_COMPARE, 3632);
+        // 3.4 us before the top to 2.5 us after it: every conversion in the off-time up
+        // to a duty of 86.4 % (a trigger at the update event reaches 76.5 %).
+        assert_eq!(ADC_END_AFTER_TOP_COUNTS, 416);
+        assert_eq!(SEQUENCE_IN_OFF_TIME_MAX_PERMILLE, 864);
+        // The position and bus samples are 1.9 us either side of the current's.
+        let step = (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * TIM1_COUNTS_PER_ADC_CYCLE;
+        assert_eq!(step, 320);
+    }
+
+    #[test]
+    fn the_window_watchdog_coasts_a_stalled_tick_within_half_a_millisecond() {
+        assert_eq!(CONTROL_PERIOD_NS, 50_000);
+        assert_eq!(WINDOW_WATCHDOG.reload(), 0x43);
+        assert_eq!(WINDOW_WATCHDOG.early_wakeup_min_ns(), 195_048);
+        assert_eq!(WINDOW_WATCHDOG.early_wakeup_max_ns(), 292_572);
+        assert_eq!(WINDOW_WATCHDOG.reset_max_ns(), 390_096);
+    }
+
+    #[test]
+    fn the_comparator_trips_above_the_software_trip_inside_the_channel() {
+        let s = settings(None).unwrap();
+        assert!(s.limits.current_trip_a < BREAK_CURRENT_A);
     }
 
     #[test]

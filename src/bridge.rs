@@ -8,10 +8,23 @@
 //! | [`Mode::Reverse`] | high | low | `-Vbus` | 0 V (low sides on) | `-duty Vbus` |
 //!
 //! A voltage command becomes a duty from the measured bus voltage, saturated at the bus
-//! voltage. The bridge never changes direction while enabled: a reversal is
-//! `duty 0, enable low (coast), direction, enable high, duty`. Coast is the safe state; it
-//! is also where the bridge starts.
-
+//! voltage. Coast (`duty 0, enable low`) is the safe state; it is also where the bridge
+//! starts. Leaving coast is `direction, enable high, duty`; a reversal is
+//! `duty 0, direction, duty`: the direction only ever changes right after a zero duty.
+//!
+//! When each write acts is the implementation's business, and the order above is safe for
+//! both kinds:
+//!
+//! * Writes that act at once (the simulator's lines, the test mocks): the direction changes
+//!   while the bridge brakes at zero duty (low sides on), never during a pulse.
+//! * The STM32 firmware's timer: the duty, the direction and the enable's rising edge all
+//!   take effect together at the next PWM period boundary, the middle of the off-time; only
+//!   the enable's falling edge (coast) acts at once. A reversal therefore starts the new
+//!   direction and the new duty with the next period, and the period in progress runs to
+//!   its end as ordered, which is the voltage the law and the fault detectors assume
+//!   ([`Drive::u_v`] applies to exactly one whole period). A reversal does not pass
+//!   through coast: with the enable's falling edge acting at once, that would cut the
+//!   period in progress short, which no model assumes.
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
@@ -157,18 +170,20 @@ impl<P: SetDutyCycle, O: OutputPin> HBridge<P, O> {
 
     fn switch(&mut self, want: Mode, duty: u16) -> Result<(), BridgeError<P, O>> {
         if want != self.mode {
-            if self.mode != Mode::Coast {
-                // Reversal: pass through coast first.
+            let from_coast = self.mode == Mode::Coast;
+            if !from_coast {
+                // Reversal: zero duty first, so that the direction never changes during a
+                // pulse (see the module documentation for when each write acts).
                 self.pwm.set_duty_cycle(0).map_err(Error::Pwm)?;
-                self.enable.set_low().map_err(Error::Pin)?;
-                self.mode = Mode::Coast;
             }
             match want {
                 Mode::Reverse => self.direction.set_low(),
                 _ => self.direction.set_high(),
             }
             .map_err(Error::Pin)?;
-            self.enable.set_high().map_err(Error::Pin)?;
+            if from_coast {
+                self.enable.set_high().map_err(Error::Pin)?;
+            }
             self.mode = want;
         }
         self.pwm.set_duty_cycle(duty).map_err(Error::Pwm)
@@ -280,9 +295,7 @@ mod tests {
         let en = PinMock::new(&[
             PinTx::set(PinState::Low),  // new(): coast
             PinTx::set(PinState::High), // enable forward
-            PinTx::set(PinState::Low),  // reversal passes through coast
-            PinTx::set(PinState::High), // enable reverse
-            PinTx::set(PinState::Low),  // coast
+            PinTx::set(PinState::Low),  // coast (a reversal leaves the enable alone)
         ]);
         let mut b = HBridge::new(pwm, dir, en).unwrap();
         assert_eq!(b.mode(), Mode::Coast);
@@ -414,19 +427,18 @@ mod tests {
                 Op::Dir(true),
                 Op::En(true),
                 Op::Duty(1000), // 10/42 * 4200
-                Op::Duty(0),
-                Op::En(false), // through coast
+                Op::Duty(0),    // reversal: zero duty, then the direction
                 Op::Dir(false),
-                Op::En(true),
                 Op::Duty(2100),
             ]
         );
     }
 
-    /// Over any sequence of commands, the direction pin only ever changes while the bridge
-    /// is disabled, and the duty is zero whenever the bridge is (re-)enabled.
+    /// Over any sequence of commands, the direction pin only ever changes right after a zero
+    /// duty (the bridge brakes, no pulse runs), the duty is zero whenever the bridge is
+    /// enabled, and every coast disables the bridge.
     #[test]
-    fn direction_never_changes_while_enabled() {
+    fn direction_changes_only_at_zero_duty() {
         let log: Log = Rc::default();
         let mut b = HBridge::new(
             Pwm(log.clone()),
@@ -435,6 +447,8 @@ mod tests {
         )
         .unwrap();
         let mut x = 0x1234_5678_u32;
+        let (mut reversals, mut coasts) = (0, 0);
+        let mut last = Mode::Coast;
         for _ in 0..10_000 {
             x ^= x << 13;
             x ^= x >> 17;
@@ -442,21 +456,35 @@ mod tests {
             let u = (x % 2001) as f32 * 0.05 - 50.0;
             if x % 97 == 0 {
                 b.coast().unwrap();
+                coasts += 1;
             } else {
                 let d = b.apply(u, 24.0).unwrap();
                 assert!(d.u_v.abs() <= 24.0);
                 assert!(d.duty <= 4200);
+                if last != Mode::Coast && d.mode != last {
+                    reversals += 1;
+                }
             }
+            last = b.mode();
         }
-        let (mut enabled, mut duty) = (false, 0);
+        assert!(reversals > 1000 && coasts > 50, "{reversals} {coasts}");
+        let (mut enabled, mut duty, mut dir) = (false, 0, None);
         for op in log.borrow().iter() {
             match *op {
-                Op::Dir(_) => assert!(!enabled, "direction changed while enabled"),
+                Op::Dir(d) => {
+                    if enabled && dir != Some(d) {
+                        assert_eq!(duty, 0, "direction changed during a pulse");
+                    }
+                    dir = Some(d);
+                }
                 Op::En(true) => {
                     assert_eq!(duty, 0, "enabled with a non-zero duty");
                     enabled = true;
                 }
-                Op::En(false) => enabled = false,
+                Op::En(false) => {
+                    assert_eq!(duty, 0, "coast left a duty behind");
+                    enabled = false;
+                }
                 Op::Duty(d) => duty = d,
             }
         }

@@ -24,6 +24,7 @@
 //! | [`supervisor`] | limits, latched faults, safe state |
 //! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
 //! | [`control`] | the configuration, the state and the one `tick` |
+//! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
 //! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
 //!
 //! ## Guarantees
@@ -88,6 +89,7 @@ pub mod actuator;
 pub mod bridge;
 pub mod config;
 pub mod control;
+pub mod guard;
 pub mod law;
 pub mod math;
 pub mod model;

@@ -11,8 +11,14 @@
 //! like a steady state until the quantity must change, so those two are injected where it
 //! must: the position sensor at the fastest point of the long move up (a reading that
 //! stays within its noise band for 0.7 ms while a fast reference moves is stuck), the
-//! current sensor during the start-up current ramp. Frozen in a steady phase, a current
+//! current sensor where the current changes fastest. Frozen in a steady phase, a current
 //! reading is found only once the loop has wound up against it.
+//!
+//! Two cases exercise the firmware's guard ([`ema::guard`]) and window watchdog
+//! ([`crate::hal::Watchdog`]): four missed interrupts are seen by the guard when the
+//! interrupt runs again (the gap is five periods), and an interrupt that stops for good,
+//! while the coil is driven, is ended by the watchdog, which coasts the bridge at the first
+//! sample instant at least its early-wakeup time (292.6 us at 20 kHz) after the last feed.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -219,6 +225,13 @@ pub fn cases(base: &Scenario) -> Result<Vec<Case>, Error> {
             "4 interrupts do not run",
             holding,
             Injected::MissedDeadlines { ticks: 4 },
+            Fault::Overrun,
+        ),
+        case(
+            "tick stops",
+            "the interrupt stops in the start-up ramp",
+            ramping,
+            Injected::MissedDeadlines { ticks: u32::MAX },
             Fault::Overrun,
         ),
     ];

@@ -1,5 +1,6 @@
 //! Mock hardware: the PWM channel and pins the core's [`ema::bridge::HBridge`] drives, the
-//! bridge and supply they switch, and the converter that produces raw ADC codes.
+//! bridge and supply they switch, the converter that produces raw ADC codes, and the
+//! firmware's window watchdog.
 //!
 //! The mock PWM and pins share their state with a [`Lines`] handle through
 //! `Rc<Cell<..>>`; the runner reads [`Lines::drive`] after each tick to know what voltage
@@ -11,7 +12,19 @@
 //! | high | high | `u = +Vbus` | `u = 0` (low sides on) |
 //! | high | low | `u = -Vbus` | `u = 0` |
 //!
+//! This is when the STM32 firmware's writes act, too: its timer takes the duty, the
+//! direction and the enable's rising edge at the period boundary, together, so every
+//! period runs one whole drive, as here (a reversal included: the bridge does not pass
+//! through coast). One difference remains, on the safe side: when a tick latches a fault,
+//! the firmware's enable falls at once, during the period the previous tick ordered, while
+//! here the coast starts with the next period; the currents simulated after a fault are
+//! the firmware's or higher.
+//!
 //! The [`Supply`] is a source `V_s` behind an internal resistance: `Vbus = V_s - R_int I_bus`.
+//!
+//! The [`Watchdog`] is fed by the ticks the guard ([`ema::guard`]) finds on time; when
+//! nothing feeds it for its early-wakeup time, it coasts the bridge, as the firmware's
+//! window-watchdog interrupt does.
 
 use std::cell::Cell;
 use std::collections::VecDeque;
@@ -236,6 +249,54 @@ impl Supply {
     #[must_use]
     pub fn bus_voltage_v(&self, input: &Input, i_a: f64) -> f64 {
         self.voltage_v - self.internal_resistance_ohm * input.bus_gain * i_a
+    }
+}
+
+/// The reference board's APB1 clock, which counts the window watchdog \[Hz\] (the
+/// firmware's `board::PCLK1_HZ`).
+pub const REFERENCE_APB1_HZ: u32 = 42_000_000;
+
+/// The firmware's window watchdog as the loop sees it: fed by on-time ticks, it coasts
+/// the bridge at the latest moment its early-wakeup interrupt can come after the last
+/// feed ([`ema::guard::Watchdog::early_wakeup_max_ns`]), checked at each sample instant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Watchdog {
+    bite_after_ns: u64,
+    last_feed_ns: u64,
+}
+
+impl Watchdog {
+    /// The reference board's window watchdog for ticks at `rate_hz`: quiet for
+    /// [`ema::guard::WATCHDOG_QUIET_PERIODS`] periods after a feed (the firmware's
+    /// choice, `board::WINDOW_WATCHDOG`), fed at time 0.
+    #[must_use]
+    pub fn reference(rate_hz: f64) -> Self {
+        let quiet_ns = f64::from(ema::guard::WATCHDOG_QUIET_PERIODS) * 1e9 / rate_hz;
+        // Bounded to [0, u32::MAX] before the cast.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let quiet_ns = quiet_ns.round().clamp(0.0, f64::from(u32::MAX)) as u32;
+        let w = ema::guard::Watchdog::at_least(REFERENCE_APB1_HZ, quiet_ns);
+        Self {
+            bite_after_ns: u64::from(w.early_wakeup_max_ns()),
+            last_feed_ns: 0,
+        }
+    }
+
+    /// Time from a feed to the bite \[ns\].
+    #[must_use]
+    pub const fn bite_after_ns(&self) -> u64 {
+        self.bite_after_ns
+    }
+
+    /// An on-time tick fed it at `now_ns`.
+    pub fn feed(&mut self, now_ns: u64) {
+        self.last_feed_ns = now_ns;
+    }
+
+    /// Whether it has bitten by `now_ns`.
+    #[must_use]
+    pub const fn bitten(&self, now_ns: u64) -> bool {
+        now_ns.saturating_sub(self.last_feed_ns) >= self.bite_after_ns
     }
 }
 
@@ -482,6 +543,18 @@ mod tests {
         assert_eq!(lines.duty(), 1000);
         b.coast().unwrap();
         assert_eq!(lines.drive(), Drive::Coast);
+    }
+
+    #[test]
+    fn the_watchdog_bites_its_early_wakeup_time_after_the_last_feed() {
+        let mut w = Watchdog::reference(20e3);
+        // 3 counts of 4096 cycles at 42 MHz.
+        assert_eq!(w.bite_after_ns(), 292_572);
+        w.feed(1_000_000);
+        assert!(!w.bitten(1_292_571));
+        assert!(w.bitten(1_292_572));
+        // At 10 kHz: 5 counts, still within half a millisecond.
+        assert_eq!(Watchdog::reference(10e3).bite_after_ns(), 487_620);
     }
 
     #[test]

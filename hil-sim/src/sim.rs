@@ -5,8 +5,18 @@
 //! Timing: sample at `t_k = k / rate`, tick, the new bridge state holds over
 //! `[t_k, t_k+1)` (zero-order hold, no computation delay; a converter delay is set in the
 //! sensor model).
+//!
+//! Every tick runs through the firmware's guard ([`ema::guard::Config::run`]) at the
+//! simulated time `t_k` in nanoseconds, and the ticks it finds on time feed a model of the
+//! firmware's window watchdog ([`hal::Watchdog`]). A missed deadline
+//! ([`Injected::MissedDeadlines`]) is a tick that does not run: the bridge keeps its last
+//! state, the guard sees the gap when the interrupt runs again and latches the overrun,
+//! and if the stall outlasts the watchdog, the watchdog coasts the bridge first (the
+//! firmware then resets and starts with the overrun latched, which is what the run
+//! records).
 
-use ema::bridge::{HBridge, Mode};
+use ema::bridge::{Drive as BridgeDrive, HBridge, Mode};
+use ema::guard::{self, End, Start};
 use ema::sense::Measurement;
 use ema::supervisor::Fault;
 use serde::{Deserialize, Serialize};
@@ -167,11 +177,20 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
     faults.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
     let mut faults = faults.into_iter().peekable();
     let mut sensing = SensorFaults::default();
-    let (mut missed, mut overrun) = (0_u32, false);
+    let mut missed = 0_u32;
     let mut last = ema::control::Status::default();
+    let period_ns = 1e9 / scenario.rate_hz();
+    // The guard counts nanoseconds; one period is far inside its 32-bit range.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let guard = guard::Config::for_period(period_ns.round() as u32);
+    let mut guarded = guard::State::default();
+    let mut watchdog = hal::Watchdog::reference(scenario.rate_hz());
 
     for _ in 0..n {
         let now = stepper.sample();
+        // Non-negative and far below 2^64 ns; the guard's counter wraps at 2^32.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let now_ns = (now.t_s * 1e9).round() as u64;
         let r = scenario.reference.position_m(now.t_s);
         // Faults whose time has come (a period's worth of slack for the f64 clock).
         while let Some(f) = faults.next_if(|f| f.at_s <= now.t_s + 1e-9) {
@@ -181,55 +200,68 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
                     stepper.set_resistance_ohm(resistance_ohm)
                 }
                 Injected::Supply { voltage_v } => stepper.set_supply_v(voltage_v),
-                Injected::MissedDeadlines { ticks } => {
-                    missed = missed.saturating_add(ticks);
-                    overrun = true;
-                }
+                Injected::MissedDeadlines { ticks } => missed = missed.saturating_add(ticks),
                 other => sensing.inject(other, &now),
             }
         }
         let status = if missed > 0 {
-            // The interrupt does not run: the bridge keeps whatever it was set to.
+            // The interrupt does not run: the bridge keeps whatever it was set to, until
+            // the watchdog's early-wakeup interrupt coasts it.
             missed -= 1;
+            if watchdog.bitten(now_ns) && last.fault.is_none() {
+                last.fault = Some(config.trip(&mut ctl, &mut bridge, Fault::Overrun));
+                last.drive = BridgeDrive::default();
+            }
             last
         } else {
-            if overrun {
-                overrun = false;
-                config.trip(&mut ctl, &mut bridge, Fault::Overrun);
-            }
+            let start = Start {
+                #[allow(clippy::cast_possible_truncation)]
+                now: now_ns as u32,
+                hardware_trip: false,
+            };
             let (x_m, i_a) = sensing.read(&now);
-            #[allow(clippy::cast_possible_truncation)]
-            match converter.as_mut() {
-                None => config.tick_measured(
-                    &mut ctl,
-                    &mut bridge,
-                    &Measurement {
-                        x_m: x_m as f32,
-                        i_a: i_a as f32,
-                        vbus_v: now.vbus_v as f32,
-                    },
-                    r as f32,
-                ),
-                Some(c) => {
-                    let frame = c.sample(x_m, i_a, now.vbus_v);
-                    match recording.as_deref_mut() {
-                        None => config.tick(&mut ctl, &mut bridge, &frame, r as f32),
-                        Some(rec) => {
-                            let rearm = rec.rearm_after_fault && last.fault.is_some();
-                            let (status, record) = ema::trace::tick_record(
-                                &config,
-                                &mut ctl,
-                                &mut bridge,
-                                &frame,
-                                r as f32,
-                                rearm,
-                            );
-                            rec.records.push(record);
-                            status
+            let outcome = guard.run(
+                &mut guarded,
+                &config,
+                &mut ctl,
+                &mut bridge,
+                start,
+                |ctl, bridge| {
+                    #[allow(clippy::cast_possible_truncation)]
+                    match converter.as_mut() {
+                        None => config.tick_measured(
+                            ctl,
+                            bridge,
+                            &Measurement {
+                                x_m: x_m as f32,
+                                i_a: i_a as f32,
+                                vbus_v: now.vbus_v as f32,
+                            },
+                            r as f32,
+                        ),
+                        Some(c) => {
+                            let frame = c.sample(x_m, i_a, now.vbus_v);
+                            match recording.as_deref_mut() {
+                                None => config.tick(ctl, bridge, &frame, r as f32),
+                                Some(rec) => {
+                                    let rearm = rec.rearm_after_fault && last.fault.is_some();
+                                    let (status, record) = ema::trace::tick_record(
+                                        &config, ctl, bridge, &frame, r as f32, rearm,
+                                    );
+                                    rec.records.push(record);
+                                    status
+                                }
+                            }
                         }
                     }
-                }
+                },
+                // The simulated tick takes no time: it always ends on time.
+                End::default,
+            );
+            if outcome.feed {
+                watchdog.feed(now_ns);
             }
+            outcome.status
         };
         last = status;
         let period = stepper.advance(lines.drive(), scenario.bridge.mode);

@@ -235,7 +235,10 @@ impl Worst {
         }
         for (name, ratio) in self.ratios(t) {
             // NaN compares as nothing: it misses.
-            if ratio.partial_cmp(&1.0).is_none_or(|o| o == std::cmp::Ordering::Greater) {
+            if ratio
+                .partial_cmp(&1.0)
+                .is_none_or(|o| o == std::cmp::Ordering::Greater)
+            {
                 out.push(name);
             }
         }

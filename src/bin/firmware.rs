@@ -1,37 +1,59 @@
 //! STM32F405 firmware: the control core in a fixed-rate interrupt.
 //!
-//! TIM1 runs the bridge PWM at 20 kHz, center-aligned; once per period its update event
-//! triggers ADC1, which converts coil current, position and bus voltage; the end of that
-//! sequence interrupts, and the interrupt runs `ema::control::Config::tick` on the codes
-//! and writes the next duty. Pins, clocks and every other hardware constant are in
-//! [`board`]; register-level set-up is in `hw`; start-up, the interrupt, the status line
-//! and the panic handler are in `app`.
+//! TIM1 runs the bridge PWM at 20 kHz, center-aligned, and drives all three bridge lines
+//! (PWM, enable, direction) as timer outputs; once per period its compare channel 4
+//! triggers ADC1, which converts position, coil current and bus voltage around the top of
+//! the count; the end of that sequence interrupts, and the interrupt runs
+//! `ema::control::Config::tick` on the codes through `ema::guard` and writes the next
+//! duty, direction and enable, which the timer applies together at the next period
+//! boundary. Pins, clocks and every other hardware fact are in [`board`]; the register
+//! values in [`regs`]; register-level set-up in `hw`; start-up, the interrupts, the status
+//! line and the panic and fault handlers in `app`; what survives a reset in [`reset`].
 //!
 //! Safety measures, in the order they act:
-//! * the board pulls the bridge enable low, so the bridge coasts through reset and boot;
-//! * start-up drives enable low before configuring the PWM, and measures the
-//!   current-sensor zero with the bridge off (an implausible zero latches
-//!   `Fault::CurrentOffset`);
+//! * the board pulls the bridge lines low, so the bridge coasts through reset and boot;
+//! * the independent watchdog (2 ms) runs before the clock set-up, so a crystal that does
+//!   not start ends in a reset, recorded as such;
+//! * start-up keeps the timer's main output off (all three lines driven low) until the
+//!   end, measures the current-sensor zero with the bridge off (an implausible zero
+//!   latches `Fault::CurrentOffset`), and refuses to run unless the update event falls at
+//!   the top of the count and the conversions end where the trigger places them;
+//! * the driver's fault output and a comparator on the current shunt stop the timer's
+//!   outputs through its break input, without software, and the next tick latches
+//!   `Fault::HardwareTrip`; a failing crystal does the same (clock security system), and
+//!   its interrupt coasts the bridge;
 //! * the tick cannot panic (link-time proof: `tests/qemu_no_panic.rs`) and latches any
 //!   implausible input as a fault with the bridge coasting;
-//! * a tick that ends with the next conversion already waiting, or starts more than 1.5
-//!   periods after the previous one, latches `Fault::Overrun`;
-//! * the independent watchdog (2 ms) is fed only by a tick that ran on time; after a
-//!   watchdog reset the controller starts with `Fault::Overrun` latched;
-//! * a panic or a hard fault forces coast by register writes before anything else.
+//! * the guard (`ema::guard`) latches `Fault::Overrun` for a tick that starts more than 1.5
+//!   periods after the previous one, ends with the next conversion waiting, or ends after
+//!   the period boundary its writes were for; only on-time ticks feed the watchdogs;
+//! * the window watchdog's early wake-up (at most 292.6 us after the last feed) coasts the
+//!   bridge, its reset follows one count later; the independent watchdog (2 ms) is the
+//!   last resort; after a watchdog reset the controller starts with `Fault::Overrun`
+//!   latched unless the stop was a refused start ([`reset`]);
+//! * a panic, a hard fault or an unexpected interrupt coasts the bridge by register writes
+//!   before anything else;
+//! * under a debugger halt, TIM1 stops with its outputs at their idle level (low: the
+//!   bridge coasts) and both watchdogs pause.
 //!
 //! Logs (defmt over RTT) come from the main loop only: a status line once a second.
 //! `defmt-rtt`'s `drop-on-contention` mode never masks interrupts, so logging cannot
 //! delay the tick.
 //!
-//! On the host this binary is a stub; `cargo test` runs the unit tests of [`board`] and
-//! [`stats`] there.
+//! On the host this binary is a stub; `cargo test` runs the unit tests of [`board`],
+//! [`regs`], [`reset`] and [`stats`] there.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 // The modules live in src/bin/firmware/ (a crate root file resolves modules beside it).
 #[cfg_attr(not(target_os = "none"), allow(dead_code))]
 #[path = "firmware/board.rs"]
 mod board;
+#[cfg_attr(not(target_os = "none"), allow(dead_code))]
+#[path = "firmware/regs.rs"]
+mod regs;
+#[cfg_attr(not(target_os = "none"), allow(dead_code))]
+#[path = "firmware/reset.rs"]
+mod reset;
 #[cfg_attr(not(target_os = "none"), allow(dead_code))]
 #[path = "firmware/stats.rs"]
 mod stats;
@@ -47,6 +69,6 @@ mod hw;
 #[cfg(not(target_os = "none"))]
 fn main() {
     eprintln!(
-        "the firmware runs on the STM32F405: build it with `cargo fw`, flash it with `cargo flash`"
+        "the firmware runs on the STM32F405: build it with `cargo fw`, flash and run it with `cargo fw-run`"
     );
 }

@@ -61,10 +61,14 @@ pub enum Fault {
     /// The coil responds outside what the configured bounds admit, moderately: the plant
     /// is not the one the controller was designed for.
     ModelBounds = 19,
+    /// The bridge's hardware protection switched it off without software: the driver's
+    /// fault output or the comparator on the current shunt pulled the PWM timer's break
+    /// input (over-current, driver over-temperature or under-voltage).
+    HardwareTrip = 20,
 }
 
 /// Number of fault codes (codes run `1..=FAULT_COUNT`).
-pub const FAULT_COUNT: usize = 19;
+pub const FAULT_COUNT: usize = 20;
 
 impl Fault {
     /// Every fault, in code order.
@@ -88,6 +92,7 @@ impl Fault {
         Fault::CoilOpen,
         Fault::CoilShort,
         Fault::ModelBounds,
+        Fault::HardwareTrip,
     ];
 
     /// The stable numeric code.
@@ -125,6 +130,7 @@ impl Fault {
             Fault::CoilOpen => "coil_open",
             Fault::CoilShort => "coil_short",
             Fault::ModelBounds => "model_bounds",
+            Fault::HardwareTrip => "hardware_trip",
         }
     }
 
@@ -321,7 +327,15 @@ mod tests {
             assert_eq!(Fault::from_code(f.code()), Some(*f));
         }
         assert_eq!(Fault::from_code(0), None);
+        assert_eq!(Fault::from_code(21), None);
         assert_eq!(Fault::OverCurrent.to_string(), "over_current (code 6)");
+        assert_eq!(Fault::HardwareTrip.to_string(), "hardware_trip (code 20)");
+        // Names are unique (logs and files name faults by them).
+        for (k, f) in Fault::ALL.iter().enumerate() {
+            for g in &Fault::ALL[k + 1..] {
+                assert_ne!(f.name(), g.name());
+            }
+        }
     }
 
     #[test]

@@ -7,13 +7,14 @@
 //! The program's panic handler calls a function that exists nowhere. The release profile
 //! links with fat LTO, so every function that no reachable code calls is gone before the
 //! linker resolves symbols: the undefined symbol is only an error when some panic is
-//! reachable. `exercise` calls what the firmware's interrupt calls (`Config::tick` and
-//! `Config::trip`) with inputs the optimiser cannot see through (`black_box`), for the
-//! configuration of every reference case, so every branch of every law and of every stage
-//! is reachable.
+//! reachable. `exercise` calls what the firmware's interrupt calls (`Config::tick` through
+//! the guard, `guard::Config::run`, and `Config::trip`) with inputs the optimiser cannot
+//! see through (`black_box`), for the configuration of every reference case, so every
+//! branch of every law, of every stage and of the guard is reachable.
 
 use core::hint::black_box;
 
+use ema::guard::{self, End, Start};
 use ema::supervisor::Fault;
 use ema::trace::CASES;
 
@@ -21,7 +22,7 @@ use ema::trace::CASES;
 fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
     extern "Rust" {
         // The symbol's name is the error message the linker prints.
-        #[link_name = "\n\nERROR: a panic is reachable from Config::tick, Config::trip or the trace replay (see tests/common/no_panic.rs)\n\n"]
+        #[link_name = "\n\nERROR: a panic is reachable from Config::tick, guard::Config::run, Config::trip or the trace replay (see tests/common/no_panic.rs)\n\n"]
         fn a_panic_is_reachable_from_the_tick() -> !;
     }
     // SAFETY: never runs: the program only links when nothing calls the panic handler.
@@ -39,6 +40,8 @@ pub fn exercise() -> u32 {
         // The optimiser must not know which law, which limits, which calibration.
         let cfg = black_box(cfg);
         let mut state = black_box(cfg.initial_state());
+        let guard = black_box(guard::Config::for_period(8400));
+        let mut guarded = black_box(guard::State::default());
         for _ in 0..black_box(3) {
             let frame = black_box(ema::sense::Frame {
                 position: 1000,
@@ -47,6 +50,16 @@ pub fn exercise() -> u32 {
             });
             let status = cfg.tick(&mut state, &mut bridge, &frame, black_box(3e-3));
             acc = acc.wrapping_add(u32::from(status.drive.duty));
+            let outcome = guard.run(
+                &mut guarded,
+                &cfg,
+                &mut state,
+                &mut bridge,
+                black_box(Start::default()),
+                |st, b| cfg.tick(st, b, &frame, black_box(3e-3)),
+                || black_box(End::default()),
+            );
+            acc = acc.wrapping_add(u32::from(outcome.feed));
         }
         if black_box(false) {
             let _ = cfg.trip(&mut state, &mut bridge, black_box(Fault::Overrun));

@@ -1,6 +1,9 @@
-//! Start-up, the control interrupt, the status line, and the panic and fault handlers.
+//! Start-up, the control interrupt, the window watchdog's early wake-up, the status line,
+//! and the panic and fault handlers.
 
 use core::cell::Cell;
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::interrupt::{self as irq, Mutex};
@@ -8,25 +11,38 @@ use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
 use ema::control::{Config, State};
+use ema::guard::{self, End, Start};
 use ema::supervisor::Fault;
-use stm32f4xx_hal::gpio::PinState;
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::board;
-use crate::hw::{self, Bridge, Pin};
+use crate::hw::{self, Bridge, Watchdogs};
+use crate::regs;
+use crate::reset::{self, Cause, Record};
 use crate::stats::{self, Cycles, Published, Snapshot};
+
+/// NVIC priority of the window watchdog's early wake-up: the highest, so that it preempts
+/// a control interrupt that never ends (4 priority bits, in the high nibble).
+const WWDG_PRIORITY: u8 = 0x00;
+/// NVIC priority of the control interrupt: one level below.
+const ADC_PRIORITY: u8 = 0x10;
+
+// The guard's late-start threshold is the board's documented overrun gap.
+const _: () = assert!(
+    guard::Config::for_period(board::CONTROL_PERIOD_CYCLES).max_gap() == board::OVERRUN_GAP_CYCLES
+);
 
 /// Everything the control interrupt owns.
 struct Control {
     cfg: Config,
     state: State,
     bridge: Bridge,
-    watchdog: IndependentWatchdog,
+    watchdogs: Watchdogs,
+    guard: guard::Config,
+    guarded: guard::State,
     cycles: Cycles,
-    last_start: Option<u32>,
-    overruns: u32,
 }
 
 /// Start-up hands the controller to the interrupt through this cell, once.
@@ -36,6 +52,39 @@ static SETPOINT_M: AtomicU32 = AtomicU32::new(board::SETPOINT_M.to_bits());
 /// Status for the main loop.
 static STATUS: Published = Published::new();
 
+/// Why the last run stopped ([`reset`]): two words of RAM that start-up leaves as they
+/// are (cortex-m-rt's `.uninit`), so they survive a reset.
+#[link_section = ".uninit.ema_reset_record"]
+static mut RECORD: MaybeUninit<[u32; 2]> = MaybeUninit::uninit();
+
+fn record_words() -> *mut [u32; 2] {
+    addr_of_mut!(RECORD).cast()
+}
+
+/// Records `cause` unless a cause is recorded already (the first one is kept: a panic's
+/// `udf` then lands in the hard-fault handler, which must not overwrite it).
+fn record(cause: Cause, detail: u8) {
+    // SAFETY: a valid, aligned static of two words; single core; accessed only through
+    // these volatile operations, by start-up and by handlers that never return to the code
+    // they interrupted. After a power-on the RAM holds arbitrary bits, which
+    // `Record::decode` rejects.
+    unsafe {
+        if Record::decode(record_words().read_volatile()).is_none() {
+            record_words().write_volatile(Record { cause, detail }.encode());
+        }
+    }
+}
+
+/// The recorded cause, if any; clears it.
+fn take_record() -> Option<Record> {
+    // SAFETY: as in `record`; start-up runs before any handler that records.
+    unsafe {
+        let r = Record::decode(record_words().read_volatile());
+        record_words().write_volatile([0; 2]);
+        r
+    }
+}
+
 /// Why the controller did not start.
 #[derive(Clone, Copy, Debug, defmt::Format)]
 enum StartError {
@@ -43,10 +92,33 @@ enum StartError {
     Peripherals,
     /// The clock tree is not the one the timing depends on.
     Clocks,
+    /// The PWM's update event is not at the top of the count.
+    PwmPhase(hw::PhaseError),
     /// No conversion arrived: TIM1 trigger or ADC dead.
     NoConversions,
+    /// The conversions do not end where the trigger places them.
+    SamplingInstant {
+        /// TIM1_CNT when the end was seen.
+        cnt: u32,
+        /// Counting down.
+        down: bool,
+    },
     /// The settings do not build.
     Settings(ema::config::Error),
+}
+
+impl StartError {
+    /// Code kept across the reset.
+    const fn code(&self) -> u8 {
+        match self {
+            StartError::Peripherals => 1,
+            StartError::Clocks => 2,
+            StartError::PwmPhase(_) => 3,
+            StartError::NoConversions => 4,
+            StartError::SamplingInstant { .. } => 5,
+            StartError::Settings(_) => 6,
+        }
+    }
 }
 
 #[entry]
@@ -58,8 +130,13 @@ fn main() -> ! {
     );
     if let Err(e) = start() {
         hw::force_coast();
-        defmt::error!("not started: {}; bridge off, waiting for the watchdog", e);
-        // The watchdog (if it runs) resets the chip, which then starts with a latched fault.
+        record(Cause::StartRefused, e.code());
+        defmt::error!(
+            "not started: {}; bridge off, waiting for the watchdog to restart the chip",
+            e
+        );
+        // The independent watchdog restarts the chip, which then starts again with nothing
+        // latched (the record says the controller never drove).
         loop {
             cortex_m::asm::wfi();
         }
@@ -98,38 +175,90 @@ fn status_line(s: &Snapshot) {
     );
 }
 
-/// Clocks, pins (bridge off first), PWM, ADC, watchdog, current-sensor zero with the
-/// bridge off, settings, then the control interrupt.
+/// Logs what the last run's end was, from the reset flags and the record.
+fn log_last_stop(flags: reset::Flags, last: Option<Record>, latched: Option<Fault>) {
+    let by = if flags.window_watchdog {
+        "window watchdog"
+    } else if flags.independent_watchdog {
+        "independent watchdog"
+    } else {
+        "power-on, reset pin or software"
+    };
+    match (last, latched) {
+        (Some(r), Some(f)) => defmt::warn!(
+            "reset by the {=str} after: {=str} (detail {=u8}); starting with fault {=str} latched",
+            by,
+            r.cause.name(),
+            r.detail,
+            f.name()
+        ),
+        (None, Some(f)) => defmt::warn!(
+            "reset by the {=str}, cause not recorded (the tick stopped with interrupts masked); starting with fault {=str} latched",
+            by,
+            f.name()
+        ),
+        (Some(r), None) => defmt::info!(
+            "reset by the {=str} after: {=str} (detail {=u8}); the controller never drove: starting again",
+            by,
+            r.cause.name(),
+            r.detail
+        ),
+        (None, None) => defmt::info!("reset by the {=str}", by),
+    }
+}
+
+/// Watchdog, clocks, PWM (lines low, phase checked), ADC, current-sensor zero with the
+/// bridge off (sampling instant checked), settings, main output, then the window watchdog
+/// and the control interrupt.
 fn start() -> Result<(), StartError> {
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         return Err(StartError::Peripherals);
     };
-    let after_watchdog = hw::take_watchdog_reset(&dp.RCC);
+    let flags = hw::take_reset_flags(&dp.RCC);
+    let last = take_record();
+    let after_reset = reset::latched_after(flags, last);
+    log_last_stop(flags, last, after_reset);
+
+    // The independent watchdog first: a crystal that does not start hangs in the clock
+    // set-up below, and the watchdog ends that (recorded as such).
+    let mut independent = IndependentWatchdog::new(dp.IWDG);
+    independent.start(board::WATCHDOG_TIMEOUT_MS.millis());
+    hw::freeze_on_debug_halt(&dp.DBGMCU);
+    record(Cause::ClockSetup, 0);
     let mut rcc = dp.RCC.freeze(hw::clocks());
+    let _ = take_record();
     if !hw::clocks_ok(&rcc) {
         return Err(StartError::Clocks);
     }
-    hw::freeze_on_debug_halt(&dp.DBGMCU);
+    hw::start_clock_security();
+    hw::start_cycle_counter(&mut cp.DCB, &mut cp.DWT);
 
-    // Bridge pins: enable low before anything else drives.
     let gpioa = dp.GPIOA.split(&mut rcc);
+    let gpiob = dp.GPIOB.split(&mut rcc);
     let gpioc = dp.GPIOC.split(&mut rcc);
-    let enable = Pin::Enable(gpioc.pc9.into_push_pull_output_in_state(PinState::Low));
-    let direction = Pin::Direction(gpioc.pc8.into_push_pull_output_in_state(PinState::Low));
-    let pwm = hw::pwm(dp.TIM1, gpioa.pa8, &mut rcc);
+    let (pwm, direction, enable) = hw::start_pwm(
+        dp.TIM1,
+        (gpioa.pa8, gpioa.pa9, gpioa.pa10, gpiob.pb12),
+        &mut rcc,
+    )
+    .map_err(StartError::PwmPhase)?;
     let Ok(mut bridge) = Bridge::new(pwm, direction, enable);
-
-    let mut watchdog = IndependentWatchdog::new(dp.IWDG);
-    watchdog.start(board::WATCHDOG_TIMEOUT_MS.millis());
+    defmt::info!(
+        "PWM: update at the top of the count; conversions around it (in the off-time up to a duty of {=u32} per mille); break input: driver fault or |i| > {=f32} A",
+        board::SEQUENCE_IN_OFF_TIME_MAX_PERMILLE,
+        board::BREAK_CURRENT_A
+    );
+    if hw::hardware_tripped() {
+        defmt::warn!("the bridge's fault input is active: the first tick latches hardware_trip");
+    }
 
     let _position = gpioc.pc0.into_analog();
     let _current = gpioc.pc1.into_analog();
     let _vbus = gpioc.pc2.into_analog();
     hw::start_adc(dp.ADC1, &dp.ADC_COMMON, &mut rcc);
-    hw::start_cycle_counter(&mut cp.DCB, &mut cp.DWT);
 
     // Current-sensor zero, bridge coasting since reset.
-    let (zero, spread) = measure_current_zero(&mut watchdog)?;
+    let (zero, spread) = measure_current_zero(&mut independent)?;
     let plausible = board::zero_plausible(zero, spread);
     defmt::info!(
         "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: {=str}",
@@ -148,35 +277,39 @@ fn start() -> Result<(), StartError> {
     );
 
     let mut state = cfg.initial_state();
-    if after_watchdog {
-        // The tick stopped long enough for the watchdog to bite: never drive again
-        // without a person looking (power cycle or reset pin).
-        cfg.trip(&mut state, &mut bridge, Fault::Overrun);
-        defmt::warn!("reset by the watchdog: starting with fault overrun latched");
+    if let Some(fault) = after_reset {
+        // The last run stopped while it may have been driving: never drive again without
+        // a person looking (power cycle or reset pin).
+        cfg.trip(&mut state, &mut bridge, fault);
     }
     if !plausible {
         cfg.trip(&mut state, &mut bridge, Fault::CurrentOffset);
     }
 
-    // The interrupt feeds from now on; this covers the time since the last zero sample.
-    watchdog.feed();
+    // Nothing can fail from here on: the window watchdog, once started, only stops with a
+    // reset.
+    independent.feed();
+    hw::enable_outputs();
     let control = Control {
         cfg,
         state,
         bridge,
-        watchdog,
+        watchdogs: Watchdogs::start(independent),
+        guard: guard::Config::for_period(board::CONTROL_PERIOD_CYCLES),
+        guarded: guard::State::default(),
         cycles: Cycles::new(),
-        last_start: None,
-        overruns: 0,
     };
     irq::free(|cs| HANDOFF.borrow(cs).set(Some(control)));
-    // Drop a conversion that completed meanwhile, then let the interrupt run.
+    // Drop a conversion that completed meanwhile, then let the interrupts run.
     let _ = hw::take_frame();
     NVIC::unpend(Interrupt::ADC);
-    // SAFETY: the handler's state is in HANDOFF; unmasking cannot break a critical section
-    // (none is open here). Priority: the only enabled interrupt, at the highest level.
+    NVIC::unpend(Interrupt::WWDG);
+    // SAFETY: the handlers' state is in HANDOFF and RECORD; unmasking cannot break a
+    // critical section (none is open here). The early wake-up outranks the tick.
     unsafe {
-        cp.NVIC.set_priority(Interrupt::ADC, 0);
+        cp.NVIC.set_priority(Interrupt::WWDG, WWDG_PRIORITY);
+        cp.NVIC.set_priority(Interrupt::ADC, ADC_PRIORITY);
+        NVIC::unmask(Interrupt::WWDG);
         NVIC::unmask(Interrupt::ADC);
     }
     Ok(())
@@ -184,18 +317,20 @@ fn start() -> Result<(), StartError> {
 
 /// Mean and spread of the current channel over board::ZERO_SAMPLES conversions, after
 /// board::ZERO_SETTLE_SAMPLES discarded ones, polled at the trigger rate with the bridge
-/// off. Feeds the watchdog; gives up when a conversion is more than 4 periods late.
+/// off. Feeds the watchdog; gives up when a conversion is more than 4 periods late, and
+/// refuses conversions that do not end where the trigger places them.
 fn measure_current_zero(watchdog: &mut IndependentWatchdog) -> Result<(f32, u16), StartError> {
     let (mut sum, mut lo, mut hi) = (0u32, u16::MAX, 0u16);
     for k in 0..board::ZERO_SETTLE_SAMPLES + board::ZERO_SAMPLES {
-        let t0 = hw::cycles();
-        while !hw::conversion_pending() {
-            if hw::cycles().wrapping_sub(t0) > 4 * board::CONTROL_PERIOD_CYCLES {
-                return Err(StartError::NoConversions);
-            }
-        }
-        let frame = hw::take_frame();
+        let (cr1, cnt, frame) = hw::wait_conversion(4 * board::CONTROL_PERIOD_CYCLES)
+            .ok_or(StartError::NoConversions)?;
         watchdog.feed();
+        if !regs::conversions_placed(cr1, cnt) {
+            return Err(StartError::SamplingInstant {
+                cnt,
+                down: regs::update_at_top(cr1),
+            });
+        }
         if k >= board::ZERO_SETTLE_SAMPLES {
             sum = sum.saturating_add(u32::from(frame.current));
             lo = lo.min(frame.current);
@@ -208,13 +343,15 @@ fn measure_current_zero(watchdog: &mut IndependentWatchdog) -> Result<(f32, u16)
 }
 
 /// The control interrupt: end of the injected conversions triggered by TIM1, once per PWM
-/// period. Reads the codes, runs the tick, checks for an overrun, feeds the watchdog when
-/// healthy, keeps the cycle statistics. No panic path (tests/qemu_no_panic.rs proves it for
-/// the tick; everything else here is saturating or checked).
+/// period. Reads the codes and the timer's flags, runs the tick through the guard (which
+/// latches a hardware trip or an overrun and says whether to feed), feeds the watchdogs
+/// when told, keeps the cycle statistics. No panic path (tests/qemu_no_panic.rs proves it
+/// for the tick and the guard; .ci/isr-calls for this handler).
 #[interrupt]
 fn ADC() {
     static mut CONTROL: Option<Control> = None;
     let start = hw::cycles();
+    let hardware_trip = hw::begin_period();
     let frame = hw::take_frame();
     if CONTROL.is_none() {
         *CONTROL = irq::free(|cs| HANDOFF.borrow(cs).take());
@@ -223,34 +360,76 @@ fn ADC() {
         return;
     };
     let setpoint_m = f32::from_bits(SETPOINT_M.load(Ordering::Relaxed));
-    let status = c.cfg.tick(&mut c.state, &mut c.bridge, &frame, setpoint_m);
-    let end = hw::cycles();
-
-    let gap = c.last_start.map(|last| start.wrapping_sub(last));
-    c.last_start = Some(start);
-    let pending_again = NVIC::is_pending(Interrupt::ADC) || hw::conversion_pending();
-    if stats::overran(pending_again, gap, board::OVERRUN_GAP_CYCLES) {
-        c.overruns = c.overruns.saturating_add(1);
-        c.cfg.trip(&mut c.state, &mut c.bridge, Fault::Overrun);
-    } else {
-        // Healthy: the tick ran on time. A latched fault does not stop the feeding: the
-        // tick is what holds the bridge in coast, and a reset would lose the latch.
-        c.watchdog.feed();
+    let cfg = &c.cfg;
+    let outcome = c.guard.run(
+        &mut c.guarded,
+        cfg,
+        &mut c.state,
+        &mut c.bridge,
+        Start {
+            now: start,
+            hardware_trip,
+        },
+        |state, bridge| cfg.tick(state, bridge, &frame, setpoint_m),
+        || End {
+            next_due: NVIC::is_pending(Interrupt::ADC) || hw::conversion_pending(),
+            boundary_passed: hw::period_boundary_passed(),
+        },
+    );
+    if outcome.feed {
+        c.watchdogs.feed();
     }
+    let end = hw::cycles();
 
     if let Some(cycles) = c
         .cycles
         .record(end.wrapping_sub(start), board::STATUS_PERIOD_TICKS)
     {
+        let status = outcome.status;
         STATUS.publish(&Snapshot {
             ticks: c.state.ticks,
             cycles,
-            overruns: c.overruns,
+            overruns: c.guarded.overruns(),
             fault: c.state.supervisor.latched().map_or(0, Fault::code),
             mode: ema::trace::mode_code(c.bridge.mode()),
             x_um: stats::scaled(status.measurement.x_m, 1e6),
             i_ma: stats::scaled(status.measurement.i_a, 1e3),
         });
+    }
+}
+
+/// The window watchdog's early wake-up: nothing has fed it for at least three periods
+/// (the tick stopped or keeps overrunning). Bridge safe at once; the reset follows one
+/// count (97.5 us) later, and the next start latches `Fault::Overrun`.
+#[interrupt]
+fn WWDG() {
+    hw::force_coast();
+    record(Cause::TickStalled, 0);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// The clock security system saw the crystal fail: TIM1 has already broken (outputs off);
+/// coast by register writes too, clear the flag, and wait for a watchdog reset.
+#[exception]
+unsafe fn NonMaskableInt() {
+    hw::force_coast();
+    record(Cause::ClockFailure, 0);
+    hw::clear_clock_failure();
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// Any interrupt without a handler of its own: bridge safe, then wait for a watchdog
+/// reset.
+#[exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    hw::force_coast();
+    record(Cause::UnexpectedInterrupt, irqn.to_le_bytes()[0]);
+    loop {
+        cortex_m::asm::wfi();
     }
 }
 
@@ -261,6 +440,7 @@ fn ADC() {
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
     cortex_m::interrupt::disable();
     hw::force_coast();
+    record(Cause::Panic, 0);
     match info.location() {
         Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
         None => defmt::error!("panic"),
@@ -273,6 +453,7 @@ fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
 #[exception]
 unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
     hw::force_coast();
+    record(Cause::HardFault, 0);
     loop {
         cortex_m::asm::wfi();
     }

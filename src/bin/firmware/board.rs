@@ -3,34 +3,68 @@
 //! | signal | pin | peripheral | note |
 //! |---|---|---|---|
 //! | bridge PWM | PA8 | TIM1_CH1 (AF1) | center-aligned, 20 kHz, active high = bridge on |
-//! | bridge direction (PH) | PC8 | GPIO push-pull | high = forward |
-//! | bridge enable (EN) | PC9 | GPIO push-pull | low = coast; **the board must pull it down** so the bridge coasts through reset, boot and a watchdog reset, while the pin floats |
+//! | bridge enable (EN) | PA9 | TIM1_CH2 (AF1) | low = coast; a timer output, so that it drops with the timer's main output (break, debugger halt, fault handlers) |
+//! | bridge direction (PH) | PA10 | TIM1_CH3 (AF1) | high = forward; a timer output, so that it changes with the duty at the period boundary |
+//! | bridge fault (BKIN) | PB12 | TIM1_BKIN (AF1) | active low: the driver's fault output and the current comparator, open drain, wired together |
 //! | position sensor | PC0 | ADC123_IN10 | 5-95 % of the range over the stroke ([`ema::sense::POSITION_M_PER_CODE`]) |
 //! | coil current | PC1 | ADC123_IN11 | bidirectional, mid-scale at 0 A ([`ema::sense::CURRENT_A_PER_CODE`]) |
 //! | bus voltage | PC2 | ADC123_IN12 | 22:1 divider ([`ema::sense::VBUS_V_PER_CODE`]) |
 //! | crystal | PH0/PH1 | HSE | 8 MHz |
 //! | debug | PA13/PA14 | SWD | probe-rs, defmt over RTT |
 //!
+//! What the board must provide (the firmware relies on it):
+//!
+//! * **Pull-downs on PA8, PA9 and PA10** (10 kOhm): through reset and boot, and whenever a
+//!   watchdog reset has released the pins, they float; the pull-down on EN keeps the bridge
+//!   coasting then. While the firmware runs, the three lines are timer outputs whose idle
+//!   level is low: the timer drives them low whenever its main output is off.
+//! * **The break input, PB12, pulled up** (4.7 kOhm to 3.3 V; the internal pull-up is also
+//!   on) and pulled low by any of: the driver's fault output (open drain, active low:
+//!   over-current, over-temperature, under-voltage) and a comparator on the current shunt
+//!   that trips at [`BREAK_CURRENT_A`] in either direction (open drain, active low). The
+//!   timer's break acts on the outputs without software and without a clock (RM0090
+//!   section 17.3.12): main output off, all three lines driven low; it stays off until a
+//!   reset (automatic re-enable is off), and the next tick latches
+//!   `Fault::HardwareTrip`.
+//! * **A driver that accepts a direction change while enabled** (its own dead time, as
+//!   integrated EN/PH drivers have): the direction changes at the period boundary, in the
+//!   middle of the off-time, so the driver is braking then, except at a duty of 100 %.
+//!
 //! Timing of one control period (50 us, 8400 CPU cycles):
 //!
 //! ```text
 //! TIM1 counter   0 /\ 4200 /\ 0          up/down, 168 MHz: 2 x 4200 counts = 50 us
 //! PWM (mode 1)  ‾‾|____|‾‾‾‾|____|‾‾     high while CNT < CCR1: pulses centred on CNT = 0
-//! update event        ^ top               RCR = 1: one update per period, at the top
-//!  -> TRGO -> ADC1 injected: current, position, bus (3 x 1.9 us)
-//!  -> JEOC interrupt -> tick -> CCR1 (preloaded: applies at the next top)
+//! compare 4          ^ CNT = 3632 counting up (PWM mode 2: OC4REF rises) -> TRGO
+//!  -> ADC1 injected: position, current, bus (3 x 1.9 us), the current's sampling
+//!     phase ending exactly at the top of the count, the sequence 3.4 us before to
+//!     2.5 us after it
+//!  -> JEOC interrupt -> tick -> CCR1..CCR3 (preloaded)
+//! update event            ^ top           RCR = 1: one update per period, at the top:
+//!                                         duty, direction and enable change together
 //! ```
 //!
 //! Sampling at the top of the count is sampling in the middle of the PWM off-time: with a
 //! triangular ripple that is the period's mean current, and it is as far from both
-//! switching edges as the period allows.
+//! switching edges as the period allows. The conversions are placed there by the compare
+//! value ([`ADC_TRIGGER_COMPARE`]), not by which overflow the update event lands on; start-up
+//! checks both that the update event comes at the top and that the conversions end just
+//! after it, and refuses to run otherwise.
 //!
 //! The sensor scales are the core's constants ([`ema::sense`]); only the current zero is
 //! measured here, at start, with the bridge off.
 
+use ema::actuator::Actuator;
 use ema::config;
 use ema::control::Settings;
-use ema::sense::CURRENT_ZERO_CODE;
+use ema::guard::{Watchdog, WATCHDOG_QUIET_PERIODS};
+use ema::model::Convention;
+use ema::sense::{Frame, CURRENT_ZERO_CODE};
+
+/// The actuator this firmware is built for: the file given as `EMA_ACTUATOR` at build
+/// time (validated by `build.rs`, which fails the build with the field named), or the
+/// product's default ([`Actuator::PRODUCT`]). Every setting derives from it at start.
+pub const ACTUATOR: Actuator = include!(concat!(env!("OUT_DIR"), "/actuator.rs"));
 
 /// Crystal \[Hz\].
 pub const HSE_HZ: u32 = 8_000_000;
@@ -43,13 +77,17 @@ pub const PCLK2_HZ: u32 = 84_000_000;
 /// TIM1 kernel clock: twice PCLK2, because the APB2 prescaler is not 1 \[Hz\].
 pub const TIM1_CLK_HZ: u32 = 2 * PCLK2_HZ;
 
-/// PWM frequency \[Hz\].
-pub const PWM_HZ: u32 = 20_000;
+/// PWM frequency: the actuator's control rate \[Hz\].
+// A rate in Hz is a whole number well inside u32 (checked below).
+#[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+pub const PWM_HZ: u32 = ACTUATOR.board.rate_hz as u32;
 /// TIM1 auto-reload: center-aligned, one PWM period is `2 * PWM_ARR` timer counts.
 pub const PWM_ARR: u32 = TIM1_CLK_HZ / (2 * PWM_HZ);
 /// PWM resolution seen by the bridge: the HAL's `max_duty_cycle` is `ARR + 1`, and a
 /// compare value above ARR keeps the output on for the whole period (100 %).
-pub const PWM_MAX_DUTY: u16 = 4201;
+// ARR is at most 8400 for the 10 kHz the board goes down to (checked below).
+#[allow(clippy::cast_possible_truncation)]
+pub const PWM_MAX_DUTY: u16 = (PWM_ARR + 1) as u16;
 /// TIM1 repetition counter: center-aligned mode has two over/underflows per period; with
 /// RCR = 1 only every second one is an update event (one ADC trigger and one compare
 /// reload per period). Written before the counter starts, the update falls on the
@@ -73,14 +111,97 @@ pub const ADC_CLK_HZ: u32 = PCLK2_HZ / ADC_PRESCALER;
 pub const ADC_SAMPLE_CYCLES: u32 = 28;
 /// Conversion time of a 12-bit result after sampling \[ADC cycles\].
 pub const ADC_CONVERSION_CYCLES: u32 = 12;
-/// ADC channel of the coil current (converted first: nearest the sampling instant).
+/// ADC channel of the coil current.
 pub const CURRENT_CHANNEL: u8 = 11;
 /// ADC channel of the position sensor.
 pub const POSITION_CHANNEL: u8 = 10;
 /// ADC channel of the bus-voltage divider.
 pub const VBUS_CHANNEL: u8 = 12;
-/// The injected sequence, in conversion order; results land in JDR1, JDR2, JDR3.
-pub const INJECTED_SEQUENCE: [u8; 3] = [CURRENT_CHANNEL, POSITION_CHANNEL, VBUS_CHANNEL];
+/// The injected sequence, in conversion order: ADC channel and what it measures; results
+/// land in JDR1, JDR2, JDR3. The one table both the set-up ([`INJECTED_SEQUENCE`],
+/// [`injected_sequence`]) and the readout ([`frame`]) use. The current is converted in the
+/// middle, so that the sequence sits around the sampling instant of the current
+/// ([`ADC_TRIGGER_COMPARE`]).
+pub const INJECTED: [(u8, Signal); 3] = [
+    (POSITION_CHANNEL, Signal::Position),
+    (CURRENT_CHANNEL, Signal::Current),
+    (VBUS_CHANNEL, Signal::Vbus),
+];
+/// The channels of [`INJECTED`], in conversion order.
+pub const INJECTED_SEQUENCE: [u8; 3] = [INJECTED[0].0, INJECTED[1].0, INJECTED[2].0];
+/// What an injected conversion measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Signal {
+    /// Position sensor.
+    Position,
+    /// Coil current.
+    Current,
+    /// Bus-voltage divider.
+    Vbus,
+}
+
+/// Where `signal` sits in [`INJECTED`] (the table's length if it is absent).
+#[must_use]
+pub const fn slot(signal: Signal) -> usize {
+    let mut k = 0;
+    while k < INJECTED.len() {
+        if INJECTED[k].1 as u8 == signal as u8 {
+            return k;
+        }
+        k += 1;
+    }
+    INJECTED.len()
+}
+
+/// The frame of one sequence from its results `[JDR1, JDR2, JDR3]`, through [`INJECTED`].
+#[inline(always)]
+#[must_use]
+pub fn frame(results: [u16; 3]) -> Frame {
+    let mut f = Frame::default();
+    let [(_, a), (_, b), (_, c)] = INJECTED;
+    let [ra, rb, rc] = results;
+    for (signal, code) in [(a, ra), (b, rb), (c, rc)] {
+        match signal {
+            Signal::Position => f.position = code,
+            Signal::Current => f.current = code,
+            Signal::Vbus => f.vbus = code,
+        }
+    }
+    f
+}
+
+/// Slot of the current in the sequence.
+pub const CURRENT_SLOT: u32 = slot(Signal::Current) as u32;
+/// Injected trigger latency, from the trigger edge to the start of the first sampling
+/// phase \[ADC cycles\] (datasheet: `t_lat(inj)` at most 3 ADC clock cycles).
+pub const ADC_TRIGGER_LATENCY_CYCLES: u32 = 3;
+/// TIM1 counts per ADC cycle.
+pub const TIM1_COUNTS_PER_ADC_CYCLE: u32 = TIM1_CLK_HZ / ADC_CLK_HZ;
+/// TIM1 counts from the trigger to the end of the current's sampling phase (when its
+/// sample-and-hold opens): the latency, the conversions before it, its own sampling.
+pub const ADC_TRIGGER_LEAD_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
+    + CURRENT_SLOT * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES)
+    + ADC_SAMPLE_CYCLES)
+    * TIM1_COUNTS_PER_ADC_CYCLE;
+/// TIM1 compare 4: its reference rises (PWM mode 2) when the counter passes this value
+/// counting up, and on TRGO that edge triggers the sequence; the current's sampling phase
+/// then ends exactly at the top of the count, the middle of the off-time.
+pub const ADC_TRIGGER_COMPARE: u32 = PWM_ARR - ADC_TRIGGER_LEAD_COUNTS;
+/// TIM1 counts from the top of the count to the end of the sequence (the interrupt).
+pub const ADC_END_AFTER_TOP_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
+    + 3 * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES))
+    * TIM1_COUNTS_PER_ADC_CYCLE
+    - ADC_TRIGGER_LEAD_COUNTS;
+/// Highest duty \[per mille\] whose off-time holds the whole sequence, trigger to last
+/// conversion: above it, a switching edge falls inside a conversion.
+pub const SEQUENCE_IN_OFF_TIME_MAX_PERMILLE: u32 = 1000
+    - ((if ADC_TRIGGER_LEAD_COUNTS > ADC_END_AFTER_TOP_COUNTS {
+        ADC_TRIGGER_LEAD_COUNTS
+    } else {
+        ADC_END_AFTER_TOP_COUNTS
+    }) * 1000)
+        .div_ceil(PWM_ARR);
+
 /// Time from the trigger to the end of the sequence \[ns\].
 pub const ADC_SEQUENCE_NS: u32 =
     3 * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * 1_000 / (ADC_CLK_HZ / 1_000_000);
@@ -89,12 +210,12 @@ pub const ADC_SEQUENCE_NS: u32 =
 pub const PWM_PORT: char = 'A';
 /// Pin number of the bridge PWM.
 pub const PWM_PIN: u8 = 8;
-/// Port of the bridge direction pin.
-pub const DIR_PORT: char = 'C';
+/// Port of the bridge direction pin (TIM1_CH3 in alternate function 1).
+pub const DIR_PORT: char = 'A';
 /// Pin number of the bridge direction.
-pub const DIR_PIN: u8 = 8;
-/// Port of the bridge enable pin.
-pub const EN_PORT: char = 'C';
+pub const DIR_PIN: u8 = 10;
+/// Port of the bridge enable pin (TIM1_CH2 in alternate function 1).
+pub const EN_PORT: char = 'A';
 /// Pin number of the bridge enable.
 pub const EN_PIN: u8 = 9;
 
@@ -103,6 +224,27 @@ pub const EN_PIN: u8 = 9;
 /// tick leaves the last duty on for at most a few milliseconds before the reset coasts
 /// the bridge (EN pull-down).
 pub const WATCHDOG_TIMEOUT_MS: u32 = 2;
+
+/// Port of the break input (TIM1_BKIN in alternate function 1).
+pub const BREAK_PORT: char = 'B';
+/// Pin number of the break input.
+pub const BREAK_PIN: u8 = 12;
+/// Trip level the board's comparator on the current shunt must be set to, either direction
+/// \[A\]: 20 % above the software trip (the actuator's peak current, 13.2 A on the
+/// product's) for the PWM ripple between samples, inside the current channel's full scale
+/// (checked below). With the product's actuator, 15.84 A of its +-16.5 A.
+pub const BREAK_CURRENT_A: f32 = 1.2 * ACTUATOR.coil.peak_current_a;
+
+/// Longest time from a tick that stops to a coasting bridge \[ns\].
+pub const STALL_TO_COAST_MAX_NS: u32 = 500_000;
+/// One control period \[ns\].
+pub const CONTROL_PERIOD_NS: u32 = 1_000_000_000 / CONTROL_RATE_HZ;
+/// The window watchdog, on APB1 without prescaler: quiet for
+/// [`WATCHDOG_QUIET_PERIODS`] control periods after a feed (on-time ticks feed less than
+/// two periods apart), its early-wakeup interrupt (which coasts the bridge) at most
+/// 292.6 us after the last feed, its reset at most 390.1 us after it (20 kHz).
+pub const WINDOW_WATCHDOG: Watchdog =
+    Watchdog::at_least(PCLK1_HZ, WATCHDOG_QUIET_PERIODS * CONTROL_PERIOD_NS);
 
 /// Conversions discarded before measuring the current zero (ADC and sensor settling).
 pub const ZERO_SETTLE_SAMPLES: u32 = 64;
@@ -114,23 +256,55 @@ pub const ZERO_TOLERANCE_CODES: f32 = 100.0;
 /// Largest accepted spread (max - min) of the zero samples \[codes\]: 0.5 A of noise.
 pub const ZERO_MAX_SPREAD_CODES: u16 = 62;
 
-/// Nominal bus voltage \[V\]: sets the bus under/over-voltage window of the settings.
-pub const VBUS_NOMINAL_V: f32 = 24.0;
-/// Position set point at start \[m\] (the paper's step to 3 mm).
-pub const SETPOINT_M: f32 = 3.0e-3;
+/// Position set point at start \[m\]: three quarters of the stroke (the paper's 3 mm on
+/// the product's actuator).
+pub const SETPOINT_M: f32 = 0.75 * ACTUATOR.mechanics.stroke_m;
 /// Ticks between two status lines (one second).
 pub const STATUS_PERIOD_TICKS: u32 = CONTROL_RATE_HZ;
 
 // The arithmetic above, checked by the compiler.
 const _: () = {
-    assert!(PWM_ARR == 4200);
-    assert!(TIM1_CLK_HZ / (2 * PWM_ARR) == PWM_HZ);
+    // A control rate the timer makes exactly, within the 10 to 50 kHz the board supports.
+    assert!(
+        ACTUATOR.board.rate_hz == PWM_HZ as f32,
+        "the actuator's board.rate_hz must be a whole number of hertz"
+    );
+    assert!(
+        PWM_HZ >= 10_000 && PWM_HZ <= 50_000,
+        "the board runs its control between 10 and 50 kHz (board.rate_hz)"
+    );
+    assert!(
+        TIM1_CLK_HZ % (2 * PWM_HZ) == 0,
+        "board.rate_hz must divide TIM1's 84 MHz half-clock (10, 20, 25, 40, 50 kHz ...)"
+    );
     assert!(PWM_MAX_DUTY as u32 == PWM_ARR + 1);
-    assert!(CONTROL_PERIOD_CYCLES == 8400);
+    assert!(CONTROL_PERIOD_CYCLES * CONTROL_RATE_HZ == SYSCLK_HZ);
     assert!(ADC_CLK_HZ <= 36_000_000);
     // The conversions end early in the period: the tick has over 40 us left.
     assert!(ADC_SEQUENCE_NS < 10_000);
     assert!(SYSCLK_HZ % HSE_HZ == 0);
+    // The sequence: every signal in it exactly once, placed around the top of the count.
+    assert!(slot(Signal::Position) < 3 && slot(Signal::Current) < 3 && slot(Signal::Vbus) < 3);
+    assert!(slot(Signal::Position) != slot(Signal::Current));
+    assert!(slot(Signal::Position) != slot(Signal::Vbus));
+    assert!(slot(Signal::Current) != slot(Signal::Vbus));
+    assert!(TIM1_CLK_HZ % ADC_CLK_HZ == 0);
+    assert!(ADC_TRIGGER_LEAD_COUNTS < PWM_ARR / 2);
+    // The interrupt comes after the top: the tick's writes all wait for the next one.
+    assert!(ADC_END_AFTER_TOP_COUNTS > 0 && ADC_END_AFTER_TOP_COUNTS < PWM_ARR / 2);
+    // The window watchdog: quiet while on-time ticks feed it, coasting well within the
+    // stall limit, by its interrupt or, with interrupts masked, by its reset.
+    assert!(WINDOW_WATCHDOG.early_wakeup_min_ns() >= WATCHDOG_QUIET_PERIODS * CONTROL_PERIOD_NS);
+    assert!(WINDOW_WATCHDOG.early_wakeup_max_ns() <= STALL_TO_COAST_MAX_NS);
+    assert!(WINDOW_WATCHDOG.reset_max_ns() <= STALL_TO_COAST_MAX_NS);
+    assert!(WINDOW_WATCHDOG.counts() < Watchdog::MAX_COUNTS);
+    // The comparator trips inside the current channel's full scale (2047 codes either side
+    // of mid-scale), so the converter sees what tripped it.
+    assert!(
+        BREAK_CURRENT_A < (2047.0 / 2048.0) * ACTUATOR.board.current_full_scale_a,
+        "the break comparator (1.2 x coil.peak_current_a) must trip inside \
+         board.current_full_scale_a"
+    );
 };
 
 /// ADC_JSQR for an injected sequence of three channels. With JL = 2 (three conversions)
@@ -153,14 +327,25 @@ pub fn zero_plausible(mean_code: f32, spread_codes: u16) -> bool {
 }
 
 /// The controller this firmware runs, with the measured current zero (`None`: nominal):
-/// the product's default (`Settings::practical`: the practical discrete-time law, one
-/// sample of measurement delay, which is this firmware's timing, reference shaping and
-/// every fault monitor). The law, gains and limits are chosen here and nowhere else.
+/// every setting derived from [`ACTUATOR`] (the practical law, one sample of measurement
+/// delay, which is this firmware's timing, reference shaping and every fault monitor), in
+/// the physical convention: settings in the paper's printed convention are refused.
 ///
 /// # Errors
-/// A zero outside the converter range.
+/// An actuator whose settings do not derive; a zero outside the converter range; the
+/// paper's convention (named `plant.convention`).
 pub fn settings(current_zero_code: Option<f32>) -> Result<Settings, config::Error> {
-    let mut s = Settings::practical(CONTROL_RATE_HZ as f32, VBUS_NOMINAL_V)?;
+    let mut s = ACTUATOR.settings()?;
+    if s.plant.convention == Convention::Paper {
+        return Err(config::Error {
+            param: "plant.convention",
+            value: 0.0,
+            reason: config::Reason::Derived {
+                what: "the paper's printed force direction, which no real actuator has",
+                derived: 0.0,
+            },
+        });
+    }
     if let Some(code) = current_zero_code {
         s.sense = s.sense.with_current_zero(code)?;
     }
@@ -178,9 +363,64 @@ mod tests {
         assert_eq!(injected_sequence([7, 3, 3]) | 0b00010, rm);
         let ours = injected_sequence(INJECTED_SEQUENCE);
         assert_eq!((ours >> 20) & 3, 2);
-        assert_eq!((ours >> 5) & 31, u32::from(CURRENT_CHANNEL));
-        assert_eq!((ours >> 10) & 31, u32::from(POSITION_CHANNEL));
+        assert_eq!((ours >> 5) & 31, u32::from(POSITION_CHANNEL));
+        assert_eq!((ours >> 10) & 31, u32::from(CURRENT_CHANNEL));
         assert_eq!((ours >> 15) & 31, u32::from(VBUS_CHANNEL));
+    }
+
+    #[test]
+    fn the_readout_follows_the_same_table_as_the_set_up() {
+        // JDRn holds the n-th conversion: each result lands in the field of the signal
+        // the table names for that slot.
+        let f = frame([100, 2048, 1354]);
+        assert_eq!(INJECTED_SEQUENCE, [10, 11, 12]);
+        assert_eq!((f.position, f.current, f.vbus), (100, 2048, 1354));
+        for (k, (channel, signal)) in INJECTED.iter().enumerate() {
+            let mut results = [0; 3];
+            results[k] = 7;
+            let f = frame(results);
+            let got = match signal {
+                Signal::Position => f.position,
+                Signal::Current => f.current,
+                Signal::Vbus => f.vbus,
+            };
+            assert_eq!(got, 7);
+            assert_eq!(
+                (injected_sequence(INJECTED_SEQUENCE) >> (5 + 5 * k)) & 31,
+                u32::from(*channel)
+            );
+        }
+    }
+
+    #[test]
+    fn the_conversions_sit_around_the_top_of_the_count() {
+        assert_eq!(TIM1_COUNTS_PER_ADC_CYCLE, 8);
+        // Current second: 3 + 40 + 28 ADC cycles from the trigger to its hold.
+        assert_eq!(CURRENT_SLOT, 1);
+        assert_eq!(ADC_TRIGGER_LEAD_COUNTS, 568);
+        assert_eq!(ADC_TRIGGER_COMPARE, 3632);
+        // 3.4 us before the top to 2.5 us after it: every conversion in the off-time up
+        // to a duty of 86.4 % (a trigger at the update event reaches 76.5 %).
+        assert_eq!(ADC_END_AFTER_TOP_COUNTS, 416);
+        assert_eq!(SEQUENCE_IN_OFF_TIME_MAX_PERMILLE, 864);
+        // The position and bus samples are 1.9 us either side of the current's.
+        let step = (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * TIM1_COUNTS_PER_ADC_CYCLE;
+        assert_eq!(step, 320);
+    }
+
+    #[test]
+    fn the_window_watchdog_coasts_a_stalled_tick_within_half_a_millisecond() {
+        assert_eq!(CONTROL_PERIOD_NS, 50_000);
+        assert_eq!(WINDOW_WATCHDOG.reload(), 0x43);
+        assert_eq!(WINDOW_WATCHDOG.early_wakeup_min_ns(), 195_048);
+        assert_eq!(WINDOW_WATCHDOG.early_wakeup_max_ns(), 292_572);
+        assert_eq!(WINDOW_WATCHDOG.reset_max_ns(), 390_096);
+    }
+
+    #[test]
+    fn the_comparator_trips_above_the_software_trip_inside_the_channel() {
+        let s = settings(None).unwrap();
+        assert!(s.limits.current_trip_a < BREAK_CURRENT_A);
     }
 
     #[test]

@@ -1,72 +1,131 @@
-//! STM32F405 glue at register level: clocks, TIM1 PWM and its ADC trigger, ADC1 injected
-//! conversions, the cycle counter, reset cause, debug freeze, and the safe state that
-//! needs no HAL object (for the panic and fault handlers).
+//! STM32F405 glue at register level: TIM1 with the three bridge lines and the ADC trigger,
+//! ADC1 injected conversions, the watchdogs, the clock security system, the cycle
+//! counter, reset flags, debug freeze, and the safe state that needs no HAL object (for
+//! the fault handlers). Register values come from [`crate::regs`].
 //!
 //! Everything here runs before the control interrupt is enabled, except [`take_frame`],
-//! [`conversion_pending`], [`cycles`] and the [`Pwm`] channel, which the interrupt uses,
-//! and [`force_coast`], which the panic and fault handlers use.
+//! [`begin_period`], [`period_boundary_passed`], [`conversion_pending`], [`cycles`],
+//! [`Pwm`], [`Line`] and [`Watchdogs::feed`], which the interrupt uses, and
+//! [`force_coast`] and [`clear_clock_failure`], which the fault handlers use.
 
 use core::convert::Infallible;
 
 use cortex_m::peripheral::{DCB, DWT};
 use ema::sense::Frame;
-use stm32f4xx_hal::gpio::{self, Output, PushPull};
+use stm32f4xx_hal::gpio;
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{self, Enable, Rcc, Reset};
-use stm32f4xx_hal::timer::{PwmChannel, PwmExt};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::board;
+use crate::regs;
+use crate::reset;
 
-/// The bridge enable pin (board::EN_PORT, board::EN_PIN): start-up must hand over exactly
-/// this pin, so the constants and the code cannot disagree.
-pub type EnablePin = gpio::Pin<{ board::EN_PORT }, { board::EN_PIN }, Output<PushPull>>;
-/// The bridge direction pin (board::DIR_PORT, board::DIR_PIN).
-pub type DirectionPin = gpio::Pin<{ board::DIR_PORT }, { board::DIR_PIN }, Output<PushPull>>;
 /// The bridge PWM pin before it is given to TIM1 (board::PWM_PORT, board::PWM_PIN).
 pub type PwmPin = gpio::Pin<{ board::PWM_PORT }, { board::PWM_PIN }>;
+/// The bridge enable pin before it is given to TIM1 (board::EN_PORT, board::EN_PIN).
+pub type EnablePin = gpio::Pin<{ board::EN_PORT }, { board::EN_PIN }>;
+/// The bridge direction pin before it is given to TIM1 (board::DIR_PORT, board::DIR_PIN).
+pub type DirectionPin = gpio::Pin<{ board::DIR_PORT }, { board::DIR_PIN }>;
+/// The break input before it is given to TIM1 (board::BREAK_PORT, board::BREAK_PIN).
+pub type BreakPin = gpio::Pin<{ board::BREAK_PORT }, { board::BREAK_PIN }>;
 
-// force_coast writes these pins through the GPIOC and GPIOA register blocks.
-const _: () = assert!(board::EN_PORT == 'C' && board::PWM_PORT == 'A' && board::EN_PIN < 16);
-const _: () = assert!(board::PWM_PIN < 16);
+// force_coast writes the three bridge pins through the GPIOA register block.
+const _: () = assert!(board::PWM_PORT == 'A' && board::EN_PORT == 'A' && board::DIR_PORT == 'A');
+const _: () = assert!(board::PWM_PIN < 16 && board::EN_PIN < 16 && board::DIR_PIN < 16);
+/// The three bridge pins in a GPIO port's 16-bit pin mask.
+const BRIDGE_PINS: u32 = (1 << board::PWM_PIN) | (1 << board::EN_PIN) | (1 << board::DIR_PIN);
+/// GPIOx_MODER bits of the three pins (two per pin).
+const BRIDGE_MODE_MASK: u32 =
+    (0b11 << (2 * board::PWM_PIN)) | (0b11 << (2 * board::EN_PIN)) | (0b11 << (2 * board::DIR_PIN));
+/// GPIOx_MODER value of the three pins as general-purpose outputs (01).
+const BRIDGE_MODE_OUTPUT: u32 =
+    (0b01 << (2 * board::PWM_PIN)) | (0b01 << (2 * board::EN_PIN)) | (0b01 << (2 * board::DIR_PIN));
 
-/// The bridge's direction or enable pin. The core's bridge takes both pins as one type;
-/// the HAL's erased pin types would do, but they index the pin number at run time, which
-/// links a bounds-check panic into the interrupt. With the pins kept typed, every pin
-/// write is one store to BSRR with a constant.
-pub enum Pin {
-    /// Bridge direction.
-    Direction(DirectionPin),
-    /// Bridge enable.
-    Enable(EnablePin),
+fn tim1() -> &'static pac::tim1::RegisterBlock {
+    // SAFETY: after `start_pwm`, TIM1 is written only by the control interrupt (compare
+    // registers, the enable's preload bit, the update flag) and by `force_coast` (the main
+    // output bit), which only moves the outputs to their safe level; see each use.
+    unsafe { &*pac::TIM1::ptr() }
 }
 
-impl embedded_hal::digital::ErrorType for Pin {
+/// TIM1 channel 1: the bridge PWM. Every duty is preloaded: it takes effect at the next
+/// update event, the top of the count, together with the direction and the enable.
+pub struct Pwm(());
+
+impl embedded_hal::pwm::ErrorType for Pwm {
     type Error = Infallible;
 }
 
-impl embedded_hal::digital::OutputPin for Pin {
+impl embedded_hal::pwm::SetDutyCycle for Pwm {
+    fn max_duty_cycle(&self) -> u16 {
+        board::PWM_MAX_DUTY
+    }
+
+    #[inline]
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+        tim1().ccr1().write(|w| w.ccr().set(duty));
+        Ok(())
+    }
+}
+
+/// The bridge's direction or enable line, each a TIM1 output whose compare value keeps it
+/// high ([`regs::LINE_HIGH`]) or low all period. Writes are preloaded (they take effect at
+/// the next period boundary, with the duty), except the enable's fall, which acts at once:
+/// that is the coast.
+pub enum Line {
+    /// Bridge direction, TIM1 channel 3.
+    Direction,
+    /// Bridge enable, TIM1 channel 2.
+    Enable,
+}
+
+impl embedded_hal::digital::ErrorType for Line {
+    type Error = Infallible;
+}
+
+impl embedded_hal::digital::OutputPin for Line {
     #[inline]
     fn set_low(&mut self) -> Result<(), Infallible> {
         match self {
-            Pin::Direction(p) => p.set_low(),
-            Pin::Enable(p) => p.set_low(),
+            Line::Direction => {
+                tim1().ccr3().write(|w| w.ccr().set(regs::LINE_LOW));
+            }
+            Line::Enable => enable_off_now(),
         }
         Ok(())
     }
 
     #[inline]
     fn set_high(&mut self) -> Result<(), Infallible> {
-        match self {
-            Pin::Direction(p) => p.set_high(),
-            Pin::Enable(p) => p.set_high(),
-        }
+        let ccr = match self {
+            Line::Direction => tim1().ccr3(),
+            Line::Enable => tim1().ccr2(),
+        };
+        ccr.write(|w| w.ccr().set(regs::LINE_HIGH));
         Ok(())
     }
 }
 
+/// The enable low now, and from the next update event on: compare 2 written with its
+/// preload briefly off (RM0090 17.3.10: without preload a compare write takes effect at
+/// once), so the active and the preloaded value are both 0.
+#[inline]
+fn enable_off_now() {
+    let tim = tim1();
+    // SAFETY: CCMR1 takes any value with the channel bits kept as set up; only OC2PE
+    // changes. The read-modify-writes run in the control interrupt (or before it exists)
+    // and can only be preempted by a fault handler, which never writes CCMR1.
+    tim.ccmr1_output()
+        .modify(|r, w| unsafe { w.bits(r.bits() & !regs::CCMR1_OC2PE) });
+    tim.ccr2().write(|w| w.ccr().set(regs::LINE_LOW));
+    tim.ccmr1_output()
+        .modify(|r, w| unsafe { w.bits(r.bits() | regs::CCMR1_OC2PE) });
+}
+
 /// The H-bridge as the firmware drives it.
-pub type Bridge = ema::bridge::HBridge<Pwm, Pin>;
+pub type Bridge = ema::bridge::HBridge<Pwm, Line>;
 
 /// The clock tree: 168 MHz from the 8 MHz crystal, APB1 42 MHz, APB2 84 MHz.
 pub fn clocks() -> rcc::Config {
@@ -85,18 +144,45 @@ pub fn clocks_ok(rcc: &Rcc) -> bool {
         && c.pclk2().raw() == board::PCLK2_HZ
 }
 
-/// Whether the last reset was the independent watchdog's; clears the reset flags.
-pub fn take_watchdog_reset(rcc: &pac::RCC) -> bool {
-    let by_watchdog = rcc.csr().read().wdgrstf().bit_is_set();
+/// The watchdog reset flags of the last reset; clears all reset flags.
+pub fn take_reset_flags(rcc: &pac::RCC) -> reset::Flags {
+    let csr = rcc.csr().read();
+    let flags = reset::Flags {
+        independent_watchdog: csr.wdgrstf().bit_is_set(),
+        window_watchdog: csr.wwdgrstf().bit_is_set(),
+    };
     rcc.csr().modify(|_, w| w.rmvf().set_bit());
-    by_watchdog
+    flags
 }
 
-/// While a debugger halts the core: TIM1 stops with its outputs disabled (as if MOE were
-/// cleared: the PWM pin goes inactive, no pulse is frozen on), and the watchdog pauses.
+/// Turns the clock security system on (RM0090 7.2.7): if the crystal fails, the chip
+/// switches to its internal oscillator, TIM1 breaks (outputs off, like its break input)
+/// and the non-maskable interrupt runs.
+pub fn start_clock_security() {
+    // SAFETY: RCC_CR takes CSSON with every other bit as read; the clock set-up is over
+    // and nothing else writes RCC_CR.
+    let rcc = unsafe { &*pac::RCC::ptr() };
+    rcc.cr()
+        .modify(|r, w| unsafe { w.bits(r.bits() | regs::RCC_CR_CSSON) });
+}
+
+/// Clears the clock-security flag (without it the non-maskable interrupt would re-enter
+/// forever).
+pub fn clear_clock_failure() {
+    // SAFETY: RCC_CIR: CSSC is write-1-to-clear; the enable bits are written back as
+    // read, the flags are read-only. Called from the non-maskable interrupt only.
+    let rcc = unsafe { &*pac::RCC::ptr() };
+    rcc.cir()
+        .modify(|r, w| unsafe { w.bits(r.bits() | regs::RCC_CIR_CSSC) });
+}
+
+/// While a debugger halts the core: TIM1 stops with its outputs at their idle level (its
+/// main output acts as off and OSSI = 1: all three bridge lines low, the bridge coasts,
+/// RM0090 17.3.21), and both watchdogs pause.
 pub fn freeze_on_debug_halt(dbg: &pac::DBGMCU) {
     dbg.apb2_fz().modify(|_, w| w.dbg_tim1_stop().set_bit());
-    dbg.apb1_fz().modify(|_, w| w.dbg_iwdg_stop().set_bit());
+    dbg.apb1_fz()
+        .modify(|_, w| w.dbg_iwdg_stop().set_bit().dbg_wwdg_stop().set_bit());
 }
 
 /// Starts the DWT cycle counter.
@@ -111,77 +197,131 @@ pub fn cycles() -> u32 {
     DWT::cycle_count()
 }
 
-/// TIM1 channel 1 for the bridge. A duty of 0 takes effect at once, any other duty at the
-/// next update event (the compare preload keeps the pulses symmetric).
+/// Why the PWM did not start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum PhaseError {
+    /// No update event came within three periods.
+    NoUpdate,
+    /// The update event fell at the bottom of the count (in the middle of the pulses).
+    UpdateAtBottom,
+}
+
+/// TIM1 from [`regs`]: the bridge lines driven low (main output off), the pins handed to
+/// it, the counter running; then checks that the update event falls at the top of the
+/// count (RM0090 17.3.3: with an odd repetition count in center-aligned mode, whether it
+/// lands on the overflow or the underflow depends on when RCR was written and the counter
+/// started). The main output stays off until [`enable_outputs`].
 ///
-/// Why zero is special: the core's bridge coasts and reverses as `duty 0, enable low,
-/// direction, enable high, duty` within one tick, assuming each step acts at once. Enable
-/// and direction are GPIO writes and do; a preloaded compare value would only change at
-/// the next update, leaving the old duty running for the rest of the period with the
-/// bridge enabled in the new direction. Writing 0 with the preload briefly off makes the
-/// output inactive immediately, so the bridge is only ever enabled at zero duty, as the
-/// core intends; the new duty then starts with the next period.
-pub struct Pwm(PwmChannel<pac::TIM1, 0>);
-
-impl embedded_hal::pwm::ErrorType for Pwm {
-    type Error = Infallible;
-}
-
-impl embedded_hal::pwm::SetDutyCycle for Pwm {
-    fn max_duty_cycle(&self) -> u16 {
-        self.0.get_max_duty()
+/// # Errors
+/// The update event does not come, or comes at the bottom: the compare values would
+/// change in the middle of a pulse.
+pub fn start_pwm(
+    timer: pac::TIM1,
+    pins: (PwmPin, EnablePin, DirectionPin, BreakPin),
+    rcc: &mut Rcc,
+) -> Result<(Pwm, Line, Line), PhaseError> {
+    pac::TIM1::enable(rcc);
+    pac::TIM1::reset(rcc);
+    let tim = &timer;
+    // SAFETY: TIM1 is owned here, clocked and reset, its counter stopped. Every value
+    // comes from `regs`, where it is checked against the reference manual's bit positions;
+    // prescaler 0, ARR and the compares fit their 16-bit registers (board asserts).
+    unsafe {
+        tim.cr1().write(|w| w.bits(regs::CR1));
+        tim.cr2().write(|w| w.bits(regs::CR2));
+        tim.psc().write(|w| w.bits(0));
+        tim.arr().write(|w| w.bits(board::PWM_ARR));
+        tim.rcr().write(|w| w.bits(regs::RCR));
+        tim.ccmr1_output().write(|w| w.bits(regs::CCMR1));
+        tim.ccmr2_output().write(|w| w.bits(regs::CCMR2));
+        tim.ccr1().write(|w| w.bits(0));
+        tim.ccr2().write(|w| w.bits(u32::from(regs::LINE_LOW)));
+        tim.ccr3().write(|w| w.bits(u32::from(regs::LINE_LOW)));
+        tim.ccr4().write(|w| w.bits(board::ADC_TRIGGER_COMPARE));
+        tim.ccer().write(|w| w.bits(regs::CCER));
+        // One write, lock included: the break and off-state settings cannot change again
+        // before a reset.
+        tim.bdtr().write(|w| w.bits(regs::BDTR));
     }
-
-    #[inline]
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
-        if duty == 0 {
-            // SAFETY: CCMR1 of TIM1 is only ever written here and by the set-up below (which
-            // has finished before the bridge exists); the interrupt that calls this is the
-            // only one touching TIM1, so the read-modify-writes cannot interleave.
-            let tim = unsafe { &*pac::TIM1::ptr() };
-            tim.ccmr1_output().modify(|_, w| w.oc1pe().clear_bit());
-            self.0.set_duty(0);
-            tim.ccmr1_output().modify(|_, w| w.oc1pe().set_bit());
-        } else {
-            self.0.set_duty(duty);
-        }
-        Ok(())
-    }
-}
-
-/// TIM1 at 20 kHz center-aligned on the PWM pin, its update event once per period on TRGO
-/// (the ADC trigger), main output enabled, channel enabled at duty 0.
-pub fn pwm(tim1: pac::TIM1, pin: PwmPin, rcc: &mut Rcc) -> Pwm {
-    // Prescaler 0 (the timer counts at TIM1_CLK_HZ), ARR = PWM_ARR, compare preload on,
-    // PWM mode 1, counter running edge-aligned for now.
-    let (_manager, (ch1, ..)) = tim1.pwm::<{ board::TIM1_CLK_HZ }>(
-        fugit::TimerDurationU32::from_ticks(board::PWM_ARR + 1),
-        rcc,
-    );
-    let mut ch1 = ch1.with(pin);
-    ch1.set_duty(0);
-    // SAFETY: TIM1 belongs to this function (the HAL objects above own it and only write
-    // CCR1 and CCER from now on); nothing else runs yet.
-    let tim = unsafe { &*pac::TIM1::ptr() };
-    // RM0090 17.3.3: the counting mode may only change while the counter is stopped.
-    tim.cr1().modify(|_, w| w.cen().clear_bit());
-    tim.cnt().reset();
-    tim.cr1().modify(|_, w| w.cms().center_aligned1());
-    // Written before the counter starts: the update event falls on the overflow (top).
-    tim.rcr().write(|w| w.rep().set(board::PWM_REPETITION));
-    // Load prescaler, ARR, CCR1 and the repetition counter now. MMS is still "reset", so
-    // this UG also pulses TRGO, harmlessly: the ADC's trigger is not enabled yet.
+    // BKE takes one APB clock to act (RM0090 17.3.12); then a flag the enabling may have
+    // raised goes, unless the break input really is active.
+    cortex_m::asm::delay(8);
+    tim.sr().write(|w| unsafe { w.bits(0) });
+    // UG loads the prescaler, ARR, the compares and the repetition counter and clears the
+    // counter; RCR is written before the counter starts. TRGO is compare 4, so this does
+    // not trigger a conversion.
     tim.egr().write(|w| w.ug().set_bit());
-    tim.cr2().modify(|_, w| w.mms().update());
-    tim.bdtr().modify(|_, w| w.moe().set_bit());
-    ch1.enable();
-    tim.cr1().modify(|_, w| w.cen().set_bit());
-    Pwm(ch1)
+    tim.sr().write(|w| w.uif().clear());
+    // The pins go to the timer now: its outputs are enabled at their idle level (low).
+    let (pwm, en, dir, brk) = pins;
+    let _pwm = pwm.into_alternate::<1>();
+    let _en = en.into_alternate::<1>();
+    let _dir = dir.into_alternate::<1>();
+    let _brk = brk.into_alternate::<1>().internal_pull_up(true);
+    tim.cr1()
+        .modify(|r, w| unsafe { w.bits(r.bits() | regs::CR1_CEN) });
+
+    let cr1 = wait_update(3 * board::CONTROL_PERIOD_CYCLES).ok_or(PhaseError::NoUpdate)?;
+    if !regs::update_at_top(cr1) {
+        return Err(PhaseError::UpdateAtBottom);
+    }
+    Ok((Pwm(()), Line::Direction, Line::Enable))
 }
 
-/// ADC1 converting current, position and bus voltage (board::INJECTED_SEQUENCE) as an
-/// injected sequence on every rising edge of TIM1 TRGO, JEOC interrupt enabled (the NVIC
-/// line stays masked until the controller is handed over).
+/// Waits for the next update event, at most `timeout` cycles; returns TIM1_CR1 read as
+/// soon as it is seen, and clears the flag.
+fn wait_update(timeout: u32) -> Option<u32> {
+    let tim = tim1();
+    tim.sr().write(|w| w.uif().clear());
+    let t0 = cycles();
+    while tim.sr().read().bits() & regs::SR_UIF == 0 {
+        if cycles().wrapping_sub(t0) > timeout {
+            return None;
+        }
+    }
+    let cr1 = tim.cr1().read().bits();
+    tim.sr().write(|w| w.uif().clear());
+    Some(cr1)
+}
+
+/// Turns TIM1's main output on: the lines follow their compare values (the bridge still
+/// coasts: the enable's compare is 0). Has no effect while the break input is active.
+pub fn enable_outputs() {
+    // SAFETY: only MOE changes (the other BDTR bits are written back; the locked ones
+    // ignore writes anyway). Runs before the control interrupt is enabled.
+    tim1()
+        .bdtr()
+        .modify(|r, w| unsafe { w.bits(r.bits() | regs::BDTR_MOE) });
+}
+
+/// The break flag is set: the bridge's hardware protection switched the outputs off (at
+/// start: its input is active).
+pub fn hardware_tripped() -> bool {
+    tim1().sr().read().bits() & regs::SR_BIF != 0
+}
+
+/// At the interrupt's start: whether the bridge's hardware protection has switched the
+/// outputs off (break flag), and clears the update flag of the top that began this
+/// period, so that [`period_boundary_passed`] sees only the next one.
+#[inline(always)]
+pub fn begin_period() -> bool {
+    let tim = tim1();
+    let sr = tim.sr().read().bits();
+    // Only UIF: the other flags are written 1 (no change), BIF stays as a record.
+    tim.sr().write(|w| w.uif().clear());
+    sr & regs::SR_BIF != 0
+}
+
+/// Whether an update event (the period boundary at which the tick's writes take effect)
+/// came since [`begin_period`].
+#[inline(always)]
+pub fn period_boundary_passed() -> bool {
+    tim1().sr().read().bits() & regs::SR_UIF != 0
+}
+
+/// ADC1 converting board::INJECTED as an injected sequence on every rising edge of TIM1
+/// TRGO (compare 4), JEOC interrupt enabled (the NVIC line stays masked until the
+/// controller is handed over).
 pub fn start_adc(adc1: pac::ADC1, common: &pac::ADC_COMMON, rcc: &mut Rcc) {
     pac::ADC1::enable(rcc);
     pac::ADC1::reset(rcc);
@@ -210,16 +350,17 @@ fn adc1() -> &'static pac::adc1::RegisterBlock {
     unsafe { &*pac::ADC1::ptr() }
 }
 
-/// Clears the end-of-injected-conversion flag and returns the three codes.
+/// Clears the end-of-injected-conversion flag and returns the three codes, each in the
+/// field board::INJECTED names for its slot.
 #[inline(always)]
 pub fn take_frame() -> Frame {
     let adc = adc1();
     adc.sr().write(|w| w.jeoc().clear());
-    Frame {
-        current: adc.jdr1().read().jdata().bits(),
-        position: adc.jdr2().read().jdata().bits(),
-        vbus: adc.jdr3().read().jdata().bits(),
-    }
+    board::frame([
+        adc.jdr1().read().jdata().bits(),
+        adc.jdr2().read().jdata().bits(),
+        adc.jdr3().read().jdata().bits(),
+    ])
 }
 
 /// `true` when a sequence has completed since the last [`take_frame`].
@@ -228,35 +369,77 @@ pub fn conversion_pending() -> bool {
     adc1().sr().read().jeoc().bit_is_set()
 }
 
-/// The safe state, forced by register writes that need no HAL object and no lock: bridge
-/// enable low (coast), TIM1 main output off, compare 0, and the PWM pin turned into a GPIO
-/// output driven low. Safe to call at any time, any number of times, from any context
-/// (a write to a peripheral whose clock is still off is ignored, and then the pins are
-/// still in their reset state: inputs, EN pulled down by the board).
+/// Waits for the next sequence, at most `timeout` cycles; returns TIM1_CR1 and TIM1_CNT
+/// read as soon as its end is seen (for [`regs::conversions_placed`]) and the frame.
+pub fn wait_conversion(timeout: u32) -> Option<(u32, u32, Frame)> {
+    let t0 = cycles();
+    while !conversion_pending() {
+        if cycles().wrapping_sub(t0) > timeout {
+            return None;
+        }
+    }
+    let tim = tim1();
+    let cnt = tim.cnt().read().bits();
+    let cr1 = tim.cr1().read().bits();
+    Some((cr1, cnt, take_frame()))
+}
+
+/// Both watchdogs; the tick feeds them when the guard says it ran on time.
+pub struct Watchdogs {
+    independent: IndependentWatchdog,
+}
+
+impl Watchdogs {
+    /// Starts the window watchdog (board::WINDOW_WATCHDOG, early-wakeup interrupt on; its
+    /// NVIC line is unmasked by the caller) beside the running independent one. Once
+    /// started, only a reset stops it: every step that can fail comes before.
+    pub fn start(independent: IndependentWatchdog) -> Self {
+        // SAFETY: RCC_APB1ENR: one more clock enable bit, written back as read otherwise;
+        // the WWDG values come from `regs` (checked against RM0090 21.6).
+        unsafe {
+            let rcc = &*pac::RCC::ptr();
+            rcc.apb1enr().modify(|_, w| w.wwdgen().set_bit());
+            let wwdg = &*pac::WWDG::ptr();
+            wwdg.cfr().write(|w| w.bits(regs::WWDG_CFR));
+            wwdg.sr().write(|w| w.bits(0));
+            wwdg.cr().write(|w| w.bits(regs::WWDG_CR));
+        }
+        Self { independent }
+    }
+
+    /// Feeds both.
+    #[inline(always)]
+    pub fn feed(&mut self) {
+        self.independent.feed();
+        // SAFETY: WWDG_CR takes WDGA (already set) and the counter reload from `regs`;
+        // the window is open (W = 0x7F), so a feed is never early.
+        unsafe { (*pac::WWDG::ptr()).cr().write(|w| w.bits(regs::WWDG_CR)) };
+    }
+}
+
+/// The safe state, forced by register writes that need no HAL object and no lock: TIM1's
+/// main output off (with OSSI = 1 the three bridge lines go to their idle level, low: the
+/// bridge coasts), the enable's compare 0, and the three pins turned into GPIO outputs
+/// driven low, so that they no longer depend on the timer at all. Safe to call at any
+/// time, any number of times, from any context (a write to a peripheral whose clock is
+/// still off is ignored, and then the pins are still in their reset state: inputs, pulled
+/// down by the board).
 pub fn force_coast() {
     // Raw bit values, not the PAC's indexed field writers: those check the index at run
-    // time, and a panic handler must not be able to panic.
-    let en_reset = 1u32 << (16 + board::EN_PIN);
-    let pwm_reset = 1u32 << (16 + board::PWM_PIN);
-    let pwm_mode_mask = 0b11u32 << (2 * board::PWM_PIN);
-    let pwm_mode_output = 0b01u32 << (2 * board::PWM_PIN);
-    // SAFETY: fixed register blocks of this chip. A single 32-bit write to BSRR is atomic
-    // with respect to every other pin operation; the read-modify-writes of TIM1 and GPIOA
-    // can only race with code that the caller has stopped (it runs with interrupts masked
-    // or as the hard-fault handler), and they only move the outputs towards the safe state.
-    // Every value written is valid for its register (BSRR: the reset bit of one pin;
-    // MODER: general-purpose output for one pin; CCR1: 0).
+    // time, and a fault handler must not be able to panic.
+    // SAFETY: fixed register blocks of this chip. Each write only moves the outputs towards
+    // the safe state: BDTR loses MOE (the locked bits ignore the write-back), CCR2 gets 0,
+    // BSRR gets the reset bits of the three pins (a single, atomic write), MODER makes them
+    // outputs. A read-modify-write here can only race with code this handler preempted;
+    // that code writes neither BDTR nor MODER.
     unsafe {
-        let gpioc = &*pac::GPIOC::ptr();
-        gpioc.bsrr().write(|w| w.bits(en_reset));
         let tim = &*pac::TIM1::ptr();
-        tim.bdtr()
-            .modify(|_, w| w.moe().clear_bit().aoe().clear_bit());
-        tim.ccr1().write(|w| w.ccr().set(0));
+        tim.bdtr().modify(|r, w| w.bits(r.bits() & !regs::BDTR_MOE));
+        tim.ccr2().write(|w| w.bits(u32::from(regs::LINE_LOW)));
         let gpioa = &*pac::GPIOA::ptr();
-        gpioa.bsrr().write(|w| w.bits(pwm_reset));
+        gpioa.bsrr().write(|w| w.bits(BRIDGE_PINS << 16));
         gpioa
             .moder()
-            .modify(|r, w| w.bits((r.bits() & !pwm_mode_mask) | pwm_mode_output));
+            .modify(|r, w| w.bits((r.bits() & !BRIDGE_MODE_MASK) | BRIDGE_MODE_OUTPUT));
     }
 }

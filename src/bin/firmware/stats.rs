@@ -1,5 +1,5 @@
-//! Cycle statistics of the tick, overrun detection, and the status the interrupt publishes
-//! for the main loop. Plain logic, tested on the host; the interrupt owns [`Cycles`], the
+//! Cycle statistics of the tick and the status the interrupt publishes for the main loop
+//! (overruns are the guard's, `ema::guard`). Plain logic, tested on the host; the interrupt owns [`Cycles`], the
 //! main loop only reads [`Published`].
 
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
@@ -59,14 +59,6 @@ impl Cycles {
         self.window_max = 0;
         Some(summary)
     }
-}
-
-/// Whether a tick overran: the next conversion was already waiting when it ended
-/// (`pending_again`), or it started more than `max_gap_cycles` after the previous one (a
-/// conversion was missed while something held the processor), `gap_cycles` being `None`
-/// for the first tick.
-pub fn overran(pending_again: bool, gap_cycles: Option<u32>, max_gap_cycles: u32) -> bool {
-    pending_again || gap_cycles.is_some_and(|g| g > max_gap_cycles)
 }
 
 /// What the status line shows.
@@ -209,16 +201,6 @@ mod tests {
         let s = c.record(30, 3).unwrap();
         // The window maximum restarts, the overall one does not.
         assert_eq!((s.mean, s.window_max, s.max), (20, 30, 300));
-    }
-
-    #[test]
-    fn overruns() {
-        assert!(!overran(false, None, 12_600));
-        assert!(!overran(false, Some(8_400), 12_600));
-        assert!(overran(true, Some(8_400), 12_600));
-        assert!(overran(false, Some(16_800), 12_600));
-        // A period's jitter is not an overrun.
-        assert!(!overran(false, Some(9_000), 12_600));
     }
 
     #[test]

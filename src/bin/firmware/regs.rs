@@ -1,0 +1,211 @@
+//! The register values the set-up writes, computed from the board's facts ([`crate::board`])
+//! and checked on the host against the bit positions of the reference manual (RM0090).
+//! `hw` writes them; nothing here touches a register.
+//!
+//! TIM1 (RM0090 section 17.4) drives the three bridge lines and triggers the conversions:
+//!
+//! | channel | pin | mode | compare | idle (main output off) |
+//! |---|---|---|---|---|
+//! | 1: PWM | PA8 | PWM mode 1, preloaded | the duty | low |
+//! | 2: enable | PA9 | PWM mode 1, preloaded | 0 (low) or [`LINE_HIGH`] (high) | low |
+//! | 3: direction | PA10 | PWM mode 1, preloaded | 0 (low) or [`LINE_HIGH`] (high) | low |
+//! | 4: ADC trigger | none | PWM mode 2, its reference on TRGO | [`board::ADC_TRIGGER_COMPARE`] | - |
+//!
+//! Every compare value is preloaded: what the tick writes takes effect together at the
+//! next update event, the top of the count, in the middle of the off-time. The break input
+//! is on (active low), the off-state levels are driven (OSSI = OSSR = 1) with every idle
+//! level low, automatic re-enable after a break is off, and the lock (level 2) freezes
+//! all of that until the next reset.
+
+use crate::board;
+
+// ---------- TIM1 (RM0090 section 17.4) ----------
+
+/// TIM1_CR1.DIR, bit 4 (17.4.1): the counter counts down (read-only in center-aligned mode).
+pub const CR1_DIR: u32 = 1 << 4;
+/// TIM1_CR1.CEN, bit 0: counter enabled.
+pub const CR1_CEN: u32 = 1;
+/// TIM1_CR1 while configuring: center-aligned mode 1 (CMS = 01, bits 6:5), auto-reload
+/// preloaded (ARPE, bit 7), counter stopped.
+pub const CR1: u32 = (1 << 7) | (0b01 << 5);
+
+/// TIM1_CR2 (17.4.2): master mode "compare, OC4REF is TRGO" (MMS = 111, bits 6:4), every
+/// output idle state low (OIS1..OIS4 and OIS1N..OIS3N, bits 8..14, all 0), compare
+/// control bits not preloaded (CCPC = 0).
+pub const CR2: u32 = 0b111 << 4;
+
+/// TIM1_SR.UIF, bit 0 (17.4.5): an update event happened.
+pub const SR_UIF: u32 = 1;
+/// TIM1_SR.BIF, bit 7: a break happened (stays set while the break input is active).
+pub const SR_BIF: u32 = 1 << 7;
+
+/// Output compare mode PWM mode 1 (OCxM = 110): active while CNT < CCRx counting up,
+/// while CNT <= CCRx counting down (17.4.7).
+const PWM_MODE_1: u32 = 0b110;
+/// PWM mode 2 (OCxM = 111): inactive while CNT < CCRx counting up, active above.
+const PWM_MODE_2: u32 = 0b111;
+/// OCxPE: compare preload (bit 3 of each channel's byte).
+const PRELOAD: u32 = 1 << 3;
+
+/// One output channel's byte of CCMRx: CCxS = 00 (output), OCxPE, OCxM (bits 6:4).
+const fn output(mode: u32) -> u32 {
+    (mode << 4) | PRELOAD
+}
+
+/// TIM1_CCMR1 (17.4.7): channel 1 (PWM) and channel 2 (enable) in PWM mode 1, preloaded.
+pub const CCMR1: u32 = output(PWM_MODE_1) | (output(PWM_MODE_1) << 8);
+/// TIM1_CCMR1.OC2PE, bit 11: the enable's compare preload, switched off for the one write
+/// that makes the enable fall at once.
+pub const CCMR1_OC2PE: u32 = PRELOAD << 8;
+/// TIM1_CCMR2 (17.4.8): channel 3 (direction) in PWM mode 1, channel 4 (ADC trigger) in
+/// PWM mode 2, both preloaded.
+pub const CCMR2: u32 = output(PWM_MODE_1) | (output(PWM_MODE_2) << 8);
+
+/// TIM1_CCER (17.4.9): outputs 1, 2 and 3 enabled (CC1E bit 0, CC2E bit 4, CC3E bit 8),
+/// active high (CCxP = 0), no complementary output; channel 4 has no pin (CC4E = 0: its
+/// reference still reaches TRGO).
+pub const CCER: u32 = 1 | (1 << 4) | (1 << 8);
+
+/// TIM1_BDTR.MOE, bit 15 (17.4.18): main output enable.
+pub const BDTR_MOE: u32 = 1 << 15;
+/// TIM1_BDTR.AOE, bit 14: automatic output enable after a break (kept off: named for the
+/// test that checks it).
+#[allow(dead_code)]
+pub const BDTR_AOE: u32 = 1 << 14;
+/// TIM1_BDTR.BKP, bit 13: break polarity (1 = active high; kept 0, active low: named for
+/// the test that checks it).
+#[allow(dead_code)]
+pub const BDTR_BKP: u32 = 1 << 13;
+/// TIM1_BDTR.BKE, bit 12: break enable.
+pub const BDTR_BKE: u32 = 1 << 12;
+/// TIM1_BDTR.OSSR, bit 11: off-state selection in run mode (outputs enabled at their
+/// inactive level rather than released).
+pub const BDTR_OSSR: u32 = 1 << 11;
+/// TIM1_BDTR.OSSI, bit 10: off-state selection in idle mode: with the main output off,
+/// the enabled outputs are driven to their idle level (OISx) instead of floating.
+pub const BDTR_OSSI: u32 = 1 << 10;
+/// TIM1_BDTR.LOCK = 10 (bits 9:8): level 2, which freezes BKE, BKP, AOE, the idle levels,
+/// the polarities, OSSI and OSSR until the next reset. (Level 3 would also freeze the
+/// output compare modes and preloads, which the enable's immediate fall needs.)
+pub const BDTR_LOCK_2: u32 = 0b10 << 8;
+/// TIM1_BDTR as the set-up writes it, once: break on, active low (the driver's fault
+/// output and the comparator pull it low), off-states driven, no automatic re-enable
+/// (a break stays until a reset), no dead time (the driver has its own), locked; the main
+/// output still off (`MOE` is set last, on its own).
+pub const BDTR: u32 = BDTR_LOCK_2 | BDTR_OSSI | BDTR_OSSR | BDTR_BKE;
+
+/// TIM1_RCR (17.4.13): one update event per period (two over/underflows).
+pub const RCR: u32 = board::PWM_REPETITION as u32;
+
+/// A compare value that keeps a PWM-mode-1 output high all period (above ARR).
+pub const LINE_HIGH: u16 = board::PWM_MAX_DUTY;
+/// A compare value that keeps it low all period.
+pub const LINE_LOW: u16 = 0;
+
+// ---------- Window watchdog (RM0090 section 21.6) ----------
+
+/// WWDG_CFR (21.6.2): window W = 0x7F (bits 6:0; a feed is always allowed: the watchdog
+/// counts about two periods per count, too coarse for a window the tick could keep),
+/// prescaler WDGTB = 0 (bits 8:7, /4096), early-wakeup interrupt on (EWI, bit 9).
+pub const WWDG_CFR: u16 = (1 << 9) | 0x7F;
+/// WWDG_CR (21.6.1) as a feed writes it: activation (WDGA, bit 7, stays set until reset)
+/// and the counter reload (T, bits 6:0).
+pub const WWDG_CR: u16 = (1 << 7) | board::WINDOW_WATCHDOG.reload() as u16;
+
+// ---------- Clock security system (RM0090 sections 7.2.7, 7.3.1, 7.3.3) ----------
+
+/// RCC_CR.CSSON, bit 19: clock security system on.
+pub const RCC_CR_CSSON: u32 = 1 << 19;
+/// RCC_CIR.CSSC, bit 23: clears the clock-security flag (and with it the NMI).
+pub const RCC_CIR_CSSC: u32 = 1 << 23;
+
+// ---------- Checks of the PWM's phase at start ----------
+
+/// Whether the update event falls at the top of the count: read just after an update, the
+/// counter counts down (`TIM1_CR1.DIR`). With the update at the bottom, the preloaded
+/// compare values would change in the middle of a pulse.
+#[must_use]
+pub const fn update_at_top(cr1: u32) -> bool {
+    cr1 & CR1_DIR != 0
+}
+
+/// Whether a sequence of conversions, its end seen at once by a polling loop, ended where
+/// the trigger places it: counting down, [`board::ADC_END_AFTER_TOP_COUNTS`] after the top
+/// (two ADC cycles early for the trigger latency, an eighth of a half period late for the
+/// polling).
+#[must_use]
+pub const fn conversions_placed(cr1: u32, cnt: u32) -> bool {
+    let early = 2 * board::TIM1_COUNTS_PER_ADC_CYCLE;
+    let late = board::PWM_ARR / 8;
+    if !update_at_top(cr1) || cnt > board::PWM_ARR {
+        return false;
+    }
+    let since_top = board::PWM_ARR - cnt;
+    since_top + early >= board::ADC_END_AFTER_TOP_COUNTS
+        && since_top <= board::ADC_END_AFTER_TOP_COUNTS + late
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn timer_registers_match_the_reference_manual_bits() {
+        // CR1: ARPE | CMS = 01.
+        assert_eq!(CR1, 0b1010_0000);
+        // CR2: MMS = 111 (OC4REF on TRGO); OIS1..OIS4 (bits 8, 10, 12, 14) all low.
+        assert_eq!(CR2, 0x70);
+        assert_eq!(CR2 & 0x7F00, 0);
+        // CCMR1: OC1M = 110, OC1PE; OC2M = 110, OC2PE.
+        assert_eq!(CCMR1, 0x6868);
+        assert_eq!(CCMR1_OC2PE, 1 << 11);
+        // CCMR2: OC3M = 110, OC3PE; OC4M = 111, OC4PE.
+        assert_eq!(CCMR2, 0x7868);
+        // CCER: CC1E, CC2E, CC3E; no polarity inversion, no CC4E.
+        assert_eq!(CCER, 0x0111);
+        // BDTR: LOCK = 2, OSSI, OSSR, BKE; active low (no BKP), no AOE, MOE later.
+        assert_eq!(BDTR, 0x1E00);
+        assert_eq!(BDTR & (BDTR_BKP | BDTR_AOE | BDTR_MOE), 0);
+        assert_eq!(BDTR & 0xFF, 0, "no dead time");
+        assert_eq!(RCR, 1);
+        assert_eq!((SR_UIF, SR_BIF), (1, 0x80));
+    }
+
+    #[test]
+    fn enable_and_direction_compares_span_the_period() {
+        // Above ARR a PWM-mode-1 output never goes inactive; at 0 it never goes active.
+        assert!(u32::from(LINE_HIGH) > board::PWM_ARR);
+        assert_eq!(LINE_LOW, 0);
+    }
+
+    #[test]
+    fn window_watchdog_registers() {
+        // EWI, WDGTB = 0, W = 0x7F; feed: WDGA | 0x43.
+        assert_eq!(WWDG_CFR, 0x27F);
+        assert_eq!(WWDG_CR, 0xC3);
+        assert_eq!((RCC_CR_CSSON, RCC_CIR_CSSC), (0x8_0000, 0x80_0000));
+    }
+
+    #[test]
+    fn the_pwm_phase_checks() {
+        let top = board::PWM_ARR;
+        // Counting down just after an update: the update was at the top.
+        assert!(update_at_top(CR1 | CR1_CEN | CR1_DIR));
+        assert!(!update_at_top(CR1 | CR1_CEN));
+        // The sequence ends 416 counts after the top: seen there, or up to 525 later.
+        let end = board::ADC_END_AFTER_TOP_COUNTS;
+        let down = CR1 | CR1_CEN | CR1_DIR;
+        assert!(conversions_placed(down, top - end));
+        assert!(conversions_placed(down, top - end - 525));
+        assert!(!conversions_placed(down, top - end - 526));
+        assert!(conversions_placed(down, top - end + 16));
+        assert!(!conversions_placed(down, top - end + 17));
+        // Triggered by the update at the top (TRGO on the update event instead of compare
+        // 4): the conversions end 984 counts after the top (3 ADC cycles of latency and
+        // 3 x 40 to convert, 8 counts each), outside the window.
+        assert!(!conversions_placed(down, top - 984));
+        // Counting up (the conversions around the bottom): refused.
+        assert!(!conversions_placed(CR1 | CR1_CEN, top - end));
+        assert!(!conversions_placed(down, top + 1));
+    }
+}

@@ -1,0 +1,215 @@
+//! Why the last run ended, kept in RAM across a reset, and what the next start makes of
+//! it.
+//!
+//! Every path that stops the firmware on purpose (a refused start, the window watchdog's
+//! early wake-up, a panic, a hard fault, a clock failure, an unexpected interrupt) records
+//! its cause first, in two words of RAM that start-up does not initialise. After a
+//! watchdog reset the next start reads them, logs what really happened and decides:
+//!
+//! | last run ended by | log | start with |
+//! |---|---|---|
+//! | a refused start, or the clock set-up hanging (no crystal) | the cause; the watchdog restarted a controller that never drove | nothing latched: the start checks everything again |
+//! | the tick stopping (early wake-up), a panic, a hard fault, a clock failure, an unexpected interrupt | the cause | `Fault::Overrun` latched |
+//! | nothing recorded (the tick stopped with interrupts masked: the reset came without an early wake-up) | "tick stopped, cause not recorded" | `Fault::Overrun` latched |
+//!
+//! A power-on, the reset pin or a software reset is a person's decision: nothing is
+//! latched, and a cause still recorded is only logged.
+
+use ema::supervisor::Fault;
+
+/// What stopped the firmware.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[repr(u8)]
+pub enum Cause {
+    /// The clock set-up was running: a crystal that does not start hangs there until the
+    /// independent watchdog resets.
+    ClockSetup = 1,
+    /// Start-up refused to run; the detail is the refusal's code.
+    StartRefused = 2,
+    /// The window watchdog's early wake-up: the tick stopped, or kept overrunning.
+    TickStalled = 3,
+    /// A panic (outside the tick, which cannot panic).
+    Panic = 4,
+    /// A hard fault.
+    HardFault = 5,
+    /// The clock security system saw the crystal fail.
+    ClockFailure = 6,
+    /// An interrupt without a handler; the detail is its number.
+    UnexpectedInterrupt = 7,
+}
+
+impl Cause {
+    const ALL: [Cause; 7] = [
+        Cause::ClockSetup,
+        Cause::StartRefused,
+        Cause::TickStalled,
+        Cause::Panic,
+        Cause::HardFault,
+        Cause::ClockFailure,
+        Cause::UnexpectedInterrupt,
+    ];
+
+    /// Short name, as logged.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Cause::ClockSetup => "clock set-up hung (crystal?)",
+            Cause::StartRefused => "start refused",
+            Cause::TickStalled => "tick stalled (window watchdog early wake-up)",
+            Cause::Panic => "panic",
+            Cause::HardFault => "hard fault",
+            Cause::ClockFailure => "crystal failed (clock security system)",
+            Cause::UnexpectedInterrupt => "unexpected interrupt",
+        }
+    }
+
+    /// Whether the controller may have been driving when this stopped it.
+    #[must_use]
+    pub const fn while_driving(self) -> bool {
+        !matches!(self, Cause::ClockSetup | Cause::StartRefused)
+    }
+}
+
+/// A recorded cause and its detail.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Record {
+    /// The cause.
+    pub cause: Cause,
+    /// A detail (refusal code, interrupt number), 0 when none.
+    pub detail: u8,
+}
+
+/// Marks the first word of a valid record (the second is its complement).
+const MAGIC: u32 = 0xE3A5_0000;
+
+impl Record {
+    /// The two words stored.
+    #[must_use]
+    pub const fn encode(self) -> [u32; 2] {
+        let w = MAGIC | (self.cause as u32) << 8 | self.detail as u32;
+        [w, !w]
+    }
+
+    /// The record in two stored words, if they hold one (RAM after a power-on holds
+    /// anything).
+    #[must_use]
+    pub fn decode(words: [u32; 2]) -> Option<Self> {
+        let [w, check] = words;
+        if check != !w || w & 0xFFFF_0000 != MAGIC {
+            return None;
+        }
+        let code = (w >> 8) & 0xFF;
+        let cause = Cause::ALL.into_iter().find(|c| *c as u32 == code)?;
+        Some(Self {
+            cause,
+            detail: (w & 0xFF) as u8,
+        })
+    }
+}
+
+/// The reset flags that matter here (RCC_CSR).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Flags {
+    /// IWDGRSTF: the independent watchdog.
+    pub independent_watchdog: bool,
+    /// WWDGRSTF: the window watchdog.
+    pub window_watchdog: bool,
+}
+
+impl Flags {
+    /// Either watchdog.
+    #[must_use]
+    pub const fn watchdog(self) -> bool {
+        self.independent_watchdog || self.window_watchdog
+    }
+}
+
+/// The fault the controller starts with after a reset with `flags`, the last run having
+/// recorded `record`.
+#[must_use]
+pub fn latched_after(flags: Flags, record: Option<Record>) -> Option<Fault> {
+    if !flags.watchdog() {
+        return None;
+    }
+    match record {
+        Some(r) if !r.cause.while_driving() => None,
+        _ => Some(Fault::Overrun),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const IWDG: Flags = Flags {
+        independent_watchdog: true,
+        window_watchdog: false,
+    };
+    const WWDG: Flags = Flags {
+        independent_watchdog: false,
+        window_watchdog: true,
+    };
+
+    #[test]
+    fn records_survive_encoding_and_garbage_is_not_one() {
+        for cause in Cause::ALL {
+            let r = Record { cause, detail: 42 };
+            assert_eq!(Record::decode(r.encode()), Some(r));
+        }
+        assert_eq!(Record::decode([0, 0]), None);
+        assert_eq!(Record::decode([0xFFFF_FFFF, 0]), None);
+        let [w, c] = Record {
+            cause: Cause::Panic,
+            detail: 0,
+        }
+        .encode();
+        assert_eq!(Record::decode([w, c ^ 1]), None);
+        // A valid frame around an unknown cause.
+        let w = MAGIC | 99 << 8;
+        assert_eq!(Record::decode([w, !w]), None);
+    }
+
+    #[test]
+    fn a_refused_start_is_retried_not_reported_as_an_overrun() {
+        let refused = Some(Record {
+            cause: Cause::StartRefused,
+            detail: 3,
+        });
+        assert_eq!(latched_after(IWDG, refused), None);
+        let hung = Some(Record {
+            cause: Cause::ClockSetup,
+            detail: 0,
+        });
+        assert_eq!(latched_after(IWDG, hung), None);
+    }
+
+    #[test]
+    fn a_stop_while_driving_latches_overrun() {
+        for cause in [
+            Cause::TickStalled,
+            Cause::Panic,
+            Cause::HardFault,
+            Cause::ClockFailure,
+            Cause::UnexpectedInterrupt,
+        ] {
+            let r = Some(Record { cause, detail: 0 });
+            assert_eq!(latched_after(WWDG, r), Some(Fault::Overrun), "{cause:?}");
+            assert_eq!(latched_after(IWDG, r), Some(Fault::Overrun), "{cause:?}");
+        }
+        // Nothing recorded: the early wake-up could not run (interrupts masked).
+        assert_eq!(latched_after(WWDG, None), Some(Fault::Overrun));
+        assert_eq!(latched_after(IWDG, None), Some(Fault::Overrun));
+    }
+
+    #[test]
+    fn a_person_resetting_the_chip_clears_everything() {
+        let stalled = Some(Record {
+            cause: Cause::TickStalled,
+            detail: 0,
+        });
+        assert_eq!(latched_after(Flags::default(), stalled), None);
+        assert_eq!(latched_after(Flags::default(), None), None);
+    }
+}

@@ -161,14 +161,57 @@ pub fn load(name_or_path: &str) -> Result<Scenario, LoadError> {
     parse_named(&text, &origin, &stem)
 }
 
+/// An actuator (a family member's tuned file or an actuator file) judged at another
+/// interrupt rate: its evaluation scenario with every setting derived again at `rate_hz`
+/// (the tuned gains kept). A scenario file is refused: its settings are its own.
+///
+/// # Errors
+/// See [`LoadError`]; a scenario file is [`LoadError::Invalid`] naming `rate_hz`.
+pub fn load_at_rate(name_or_path: &str, rate_hz: f64) -> Result<Scenario, LoadError> {
+    let path = Path::new(name_or_path);
+    let is_member = crate::actuator::member(name_or_path).is_some();
+    if !is_member {
+        let is_scenario = match embedded(name_or_path) {
+            Some(_) => true,
+            None => {
+                let text = std::fs::read_to_string(path).map_err(|e| LoadError::NotFound {
+                    what: name_or_path.to_owned(),
+                    io: e.to_string(),
+                })?;
+                !crate::actuator::is_actuator_text(&text)
+            }
+        };
+        if is_scenario {
+            return Err(LoadError::Invalid {
+                origin: path.display().to_string(),
+                error: crate::Error::param(
+                    "rate_hz",
+                    rate_hz,
+                    "another rate applies to an actuator (a family member or an actuator \
+                     file); a scenario's settings are its own",
+                ),
+            });
+        }
+    }
+    let (name, act) = crate::actuator::load(name_or_path)?;
+    #[allow(clippy::cast_possible_truncation)]
+    let act = act.with_rate_hz(rate_hz as f32);
+    checked(&act, name_or_path, &name)
+}
+
 /// An actuator file's evaluation scenario ([`crate::actuator::scenario`]), checked.
 fn from_actuator(text: &str, origin: &str, name: &str) -> Result<Scenario, LoadError> {
     let act = crate::actuator::parse(text, origin)?;
+    checked(&act, origin, name)
+}
+
+/// An actuator's evaluation scenario, checked.
+fn checked(act: &ema::actuator::Actuator, origin: &str, name: &str) -> Result<Scenario, LoadError> {
     let invalid = |error| LoadError::Invalid {
         origin: origin.to_owned(),
         error,
     };
-    let sc = crate::actuator::scenario(name, &act).map_err(invalid)?;
+    let sc = crate::actuator::scenario(name, act).map_err(invalid)?;
     preflight(&sc).map_err(invalid)?;
     Ok(sc)
 }

@@ -21,7 +21,7 @@ use crate::targets::{Targets, Worst};
 use crate::{catalog, Draw, Segment};
 
 /// Arguments of `montecarlo`.
-#[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
+#[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct Args {
     /// An embedded scenario's name (see `hil-sim scenarios`) or a TOML file.
     pub scenario: String,
@@ -31,6 +31,11 @@ pub struct Args {
     /// Seed of the draws (draw k uses a seed derived from it and k).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Interrupt rate [Hz], for an actuator (a family member or an actuator file): every
+    /// setting derived again at this rate, the tuned gains kept [default: the actuator's
+    /// own].
+    #[arg(long)]
+    pub rate_hz: Option<f64>,
     /// RK4 substeps per ISR period [default: the fewest validated on draw 0].
     #[arg(long)]
     pub substeps: Option<u32>,
@@ -269,8 +274,14 @@ pub fn draws_table(draws: &[Draw]) -> Table {
 /// A scenario that cannot be loaded (nothing is written then), a failed draw or write.
 pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     anyhow::ensure!(args.n > 0, "--n = 0: draw at least one plant");
-    let mut sc = catalog::load(&args.scenario)?;
-    let dir = args.output.dir(&format!("{}-montecarlo", sc.name));
+    let mut sc = match args.rate_hz {
+        None => catalog::load(&args.scenario)?,
+        Some(r) => catalog::load_at_rate(&args.scenario, r)?,
+    };
+    let dir = args.output.dir(&match args.rate_hz {
+        None => format!("{}-montecarlo", sc.name),
+        Some(r) => format!("{}-{}khz-montecarlo", sc.name, sig(r / 1e3, 3)),
+    });
     let uncertainty = match &sc.plant {
         TruePlant::Drawn { uncertainty, .. } => *uncertainty,
         _ => Uncertainty::of(&sc.controller.plant),

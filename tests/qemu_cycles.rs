@@ -11,7 +11,7 @@
 //!
 //! A tick that latches a fault is followed by `Config::rearm`, as an operator would: the
 //! paper's law, sampled at 20 kHz from 24 V, trips the current checks every few ticks
-//! (DESIGN section 3), and the statistics are of the ticks that ran the whole path
+//! (its chattering current outruns the limits), and the statistics are of the ticks that ran the whole path
 //! ("running"); the ticks that latched are counted and also held to the budget.
 //!
 //! Fails when any tick exceeds [`TICK_BUDGET`] (see there why it is not yet the goal of

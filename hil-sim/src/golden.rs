@@ -6,7 +6,7 @@
 //! One trace per reference case of `ema::trace::CASES` (every law variant), each on the
 //! product's realistic conditions: a plant drawn from the uncertainty set (fixed seed),
 //! converter noise and one sample of delay, a 24 V supply with its internal resistance,
-//! the firmware's PWM resolution (TIM1 at 20 kHz from 168 MHz: 4201 counts), the issue's
+//! the firmware's PWM resolution (TIM1 at 20 kHz from 168 MHz: 4201 counts), the product's
 //! sequence of steps, a re-arm at the tick after any latched fault (the paper's law trips
 //! its current checks every few ticks at 20 kHz), and at the end the current sensor on its
 //! rail, so that the trace also covers the fault path. 10 000 ticks (0.5 s): three traces

@@ -458,7 +458,8 @@ mod tests {
     }
 
     /// A plant with surfaces outside the bounds, and one whose energy-consistent mu falls
-    /// under mu_lo although its surface stays inside them (DESIGN section 2).
+    /// under mu_lo although its surface stays inside them: the bounds' construction ignores
+    /// how the surface grows with the gap ([`ema::model`]).
     #[test]
     fn plants_outside_the_bounds_are_flagged() {
         let controller = ema::model::Plant::paper();

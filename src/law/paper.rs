@@ -1,5 +1,6 @@
 //! The paper's law, exactly as published (Theorems 1-3), with the two corrections that keep
-//! it well defined (DESIGN section 3).
+//! it well defined: the desired current's square, negative whenever `z2 > 0`, is clipped
+//! to zero, and Theorem 3's `eps` takes absolute values of `x3` and `x3d`.
 //!
 //! ```text
 //! z1 = x1 - y_r

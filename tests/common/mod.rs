@@ -59,7 +59,8 @@ pub fn on_panic(info: &core::panic::PanicInfo<'_>) -> ! {
 /// TIM2 as a free-running 32-bit counter. Under `qemu-system-arm -icount shift=0` the
 /// virtual clock advances 1 ns per executed instruction and QEMU's STM32 timers count at
 /// 1 GHz, so with prescaler 0 a raw count difference is the exact number of instructions
-/// executed in between (DESIGN section 5). On silicon it would count timer clocks.
+/// executed in between (QEMU models neither the Cortex-M4's pipeline nor flash wait
+/// states). On silicon it would count timer clocks.
 pub struct Counter(());
 
 const TIM2: usize = 0x4000_0000;

@@ -5,7 +5,7 @@
 //! monitors (the electrical residual compares the measured current with the applied
 //! voltage).
 //!
-//! Model (DESIGN section 2, the settings' nominal magnetics and convention):
+//! Model (`ema::model`, with the settings' nominal magnetics and convention):
 //! `L(g) i' = u - R i + s v i mu(g)`, `m x'' = i^2 mu(g) / 2 - lambda v - K x`, end stops
 //! at 0 and the stroke; explicit Euler, [`SUBSTEPS`] steps per tick. The bridge applies the
 //! average voltage of its drive; in coast the current returns to the bus through the

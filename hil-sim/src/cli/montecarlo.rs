@@ -1,7 +1,7 @@
 //! `hil-sim montecarlo <scenario> --n N --seed S`: the scenario over `N` plants drawn from
 //! the uncertainty set (the scenario's own when its plant is `kind = "drawn"`, else the
 //! default set), in parallel with a progress bar ([`crate::montecarlo()`]); prints the
-//! worst case of each metric and the product's targets (issue 4: how many draws miss each)
+//! worst case of each metric and the product's targets ([`crate::targets`]: how many draws miss each)
 //! and writes every draw (plant parameters and metrics) as CSV.
 //!
 //! RK4 substeps: unless `--substeps` is given, the fewest per period (at most the

@@ -29,6 +29,21 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         write!(out, "{}", if args.tuned { e.tuned } else { e.text })?;
         return Ok(());
     }
+    let t = family_table()?;
+    writeln!(
+        out,
+        "the family (hil-sim actuators <name> prints the file, --tuned the tuned one; every \
+         command takes a name or a file):"
+    )?;
+    write!(out, "{}", t.to_text())?;
+    Ok(())
+}
+
+/// The family: name, rate, time scales, tuned gains, what it is.
+///
+/// # Errors
+/// A member whose file does not load (a defect of the repository).
+pub fn family_table() -> anyhow::Result<Table> {
     let mut t = Table::new([
         "name",
         "rate [kHz]",
@@ -60,11 +75,5 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             e.summary().to_owned(),
         ]);
     }
-    writeln!(
-        out,
-        "the family (hil-sim actuators <name> prints the file, --tuned the tuned one; every \
-         command takes a name or a file):"
-    )?;
-    write!(out, "{}", t.to_text())?;
-    Ok(())
+    Ok(t)
 }

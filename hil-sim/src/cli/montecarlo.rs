@@ -1,8 +1,8 @@
 //! `hil-sim montecarlo <scenario> --n N --seed S`: the scenario over `N` plants drawn from
 //! the uncertainty set (the scenario's own when its plant is `kind = "drawn"`, else the
 //! default set), in parallel with a progress bar ([`crate::montecarlo()`]); prints the
-//! worst case of each metric and the product's targets ([`crate::targets`]: how many draws miss each)
-//! and writes every draw (plant parameters and metrics) as CSV.
+//! worst case of each metric and the product's targets ([`crate::targets`]: how many
+//! draws miss each) and writes every draw (plant parameters and metrics) as CSV.
 //!
 //! RK4 substeps: unless `--substeps` is given, the fewest per period (at most the
 //! scenario's own) whose open-loop replay of draw 0 stays within 1e-4 of a 1 us RK4

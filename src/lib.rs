@@ -27,6 +27,29 @@
 //! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
 //! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
 //!
+//! ## What the paper gets wrong or leaves loose, and what the code does
+//!
+//! * Force direction: as printed, the magnetic force opens the airgap. A reluctance force
+//!   closes it, and its stiffness destabilises the armature near the closed stop. Both
+//!   conventions are supported ([`model::Convention`]): `Physical` (the stroke coordinate,
+//!   the force closes the gap, back-EMF `-x2 x3 mu`) is the product's everywhere;
+//!   `Paper`, as printed, only reproduces the paper.
+//! * `mu_lo`/`mu_hi` are the exact extremes over the `rho_x` interval (the paper's formula
+//!   leaves `rho_x` unspecified); they stay correct where `mu` is not monotone.
+//! * `x3d^2 < 0` whenever `z2 > 0`: clipped to `x3d = 0`. Theorem 3's `eps` uses
+//!   `|x3| + |x3d|`.
+//! * The bound construction ignores how the airgap surface grows with the gap: with an
+//!   energy-consistent fringing force the true `mu` can fall below `mu_lo`. The simulator
+//!   checks over the stroke whether a controller's bounds bracket the true `mu` and `L`, and
+//!   says so when they do not.
+//! * Theorem 1's ball radius is a Lyapunov bound of the order of a metre, not a precision
+//!   figure; it is computed and reported as such.
+//! * Sampled at firmware rates the paper's law chatters tens of amperes. The product's law
+//!   ([`law::discrete`], the "practical law") keeps the paper's structure (backstepping on
+//!   position and velocity on the robust design model, a sliding-mode current law built on
+//!   the inductance bounds) and redesigns each stage for a sampled, delayed, noisy loop;
+//!   the reason for each term is in its module docs.
+//!
 //! ## Guarantees
 //!
 //! * `#![no_std]` always (also in test builds of the library itself), no heap.

@@ -59,9 +59,9 @@ const TICK_GOAL: u32 = 300;
 /// sits about 5 % above the worst tick measured (1320, the practical law on the first
 /// tick of a shaped move, which plans the trajectory; the back-EMF in the electrical
 /// residual and the force-following disturbance added 81 to the 1239 before them), so
-/// that any regression fails the run. The README lists the measured figures per case and per stage ("Instructions per
-/// tick") and why the goal is out of reach of a single-rate tick: sense, limits, law and
-/// bridge alone take more than 300.
+/// that any regression fails the run. The run prints the measured figures per case and per
+/// stage; the goal is out of reach of a single-rate tick: sense, limits, law and bridge
+/// alone take more than 300.
 const TICK_BUDGET: u32 = 1390;
 
 #[inline(never)]

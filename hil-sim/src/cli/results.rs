@@ -179,7 +179,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     writeln!(
         w,
         "## The family (`hil-sim actuators`)\n\n\
-         Five actuators of different size, stiffness, coil and supply, each described only \
+         Actuators of different size, stiffness, coil, supply and rate, each described only \
          by its file (`hil-sim/actuators/<name>.toml`); its time scales and every setting \
          are derived from the file, and the gains are the ones `hil-sim tune` chose \
          (`<name>.tuned.toml`).\n"

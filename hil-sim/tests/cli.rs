@@ -196,6 +196,28 @@ fn scenarios_lists_the_embedded_files_and_prints_one() {
     assert!(scenarios::run(&args, &mut Vec::new()).is_err());
 }
 
+/// `montecarlo` on `scenario` (quiet, substeps validated), what it printed.
+fn montecarlo_run(
+    scenario: &str,
+    n: usize,
+    seed: u64,
+    rate_hz: Option<f64>,
+    out: Option<PathBuf>,
+) -> (anyhow::Result<montecarlo::Outcome>, String) {
+    let args = montecarlo::Args {
+        scenario: scenario.into(),
+        n,
+        seed,
+        rate_hz,
+        substeps: None,
+        quiet: true,
+        output: Output { out },
+    };
+    let mut printed = Vec::new();
+    let o = montecarlo::run(&args, &mut printed);
+    (o, String::from_utf8(printed).unwrap())
+}
+
 /// Drawn plants under the product's law: the substep count validated on draw 0 replaces
 /// the file's 10; one of these 17 draws (draw 16) holds a worst case and needs one
 /// substep more, so the draws run again with it; the worst case of each metric and every
@@ -203,20 +225,8 @@ fn scenarios_lists_the_embedded_files_and_prints_one() {
 #[test]
 fn montecarlo_reports_the_worst_case_and_every_draw() {
     let out = dir("montecarlo");
-    let args = montecarlo::Args {
-        scenario: "product".into(),
-        n: 17,
-        seed: 1,
-        rate_hz: None,
-        substeps: None,
-        quiet: true,
-        output: Output {
-            out: Some(out.clone()),
-        },
-    };
-    let mut printed = Vec::new();
-    let o = montecarlo::run(&args, &mut printed).unwrap();
-    let printed = String::from_utf8(printed).unwrap();
+    let (o, printed) = montecarlo_run("product", 17, 1, None, Some(out.clone()));
+    let o = o.unwrap();
     // The fewest substeps whose every period stays within the tolerance of 1 us RK4.
     assert!((1..=10).contains(&o.substeps), "{printed}");
     assert!(printed.contains("RK4 substeps per period"), "{printed}");
@@ -278,20 +288,8 @@ fn montecarlo_reports_the_worst_case_and_every_draw() {
 fn montecarlo_judges_an_actuator_at_another_rate() {
     let out = dir("montecarlo-rate");
     let at = |rate_hz: f64| {
-        let args = montecarlo::Args {
-            scenario: "valve".into(),
-            n: 3,
-            seed: 7,
-            rate_hz: Some(rate_hz),
-            substeps: None,
-            quiet: true,
-            output: Output {
-                out: Some(out.clone()),
-            },
-        };
-        let mut printed = Vec::new();
-        let o = montecarlo::run(&args, &mut printed).unwrap();
-        let printed = String::from_utf8(printed).unwrap();
+        let (o, printed) = montecarlo_run("valve", 3, 7, Some(rate_hz), Some(out.clone()));
+        let o = o.unwrap();
         assert_eq!(o.failing, 0, "{rate_hz} Hz: {printed}");
         let ripple: f64 = o.worst.row("ripple p-p [A]").unwrap()[1].parse().unwrap();
         ripple
@@ -302,16 +300,9 @@ fn montecarlo_judges_an_actuator_at_another_rate() {
         "ripple {fast} A at 50 kHz vs {slow} A at 20 kHz"
     );
     assert!(out.join("draws.csv").exists());
-    let refused = montecarlo::Args {
-        scenario: "product-sequence".into(),
-        n: 1,
-        seed: 1,
-        rate_hz: Some(50_000.0),
-        substeps: None,
-        quiet: true,
-        output: Output::default(),
-    };
-    let e = montecarlo::run(&refused, &mut Vec::new()).unwrap_err();
+    let e = montecarlo_run("product-sequence", 1, 1, Some(50_000.0), None)
+        .0
+        .unwrap_err();
     assert!(e.to_string().contains("rate_hz = 50000"), "{e}");
 }
 

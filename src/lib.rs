@@ -86,6 +86,7 @@
 )]
 
 pub mod actuator;
+pub mod analog;
 pub mod bridge;
 pub mod config;
 pub mod control;
@@ -94,7 +95,10 @@ pub mod law;
 pub mod math;
 pub mod model;
 pub mod observer;
+pub mod params;
+pub mod protocol;
 pub mod sense;
+pub mod store;
 pub mod supervisor;
 pub mod trace;
 pub mod trajectory;

@@ -289,7 +289,11 @@ mod tests {
         for (volts, x) in [(0.0, 0.0), (5.0, 2e-3), (10.0, 4e-3), (10.9, 4e-3)] {
             let code = (volts / VOLTAGE_V_PER_CODE + 0.5) as u16;
             let r = v.step(&mut State::default(), code);
-            assert!((r.setpoint_m - x).abs() < 2e-6, "{volts} V: {}", r.setpoint_m);
+            assert!(
+                (r.setpoint_m - x).abs() < 2e-6,
+                "{volts} V: {}",
+                r.setpoint_m
+            );
             assert_eq!(r.fault, None);
         }
         let c = cfg(Source::Current, 0.0);
@@ -327,7 +331,9 @@ mod tests {
         }
         assert_eq!(c.step(&mut st, ok).fault, None);
         // 20 in a row (1 ms at 20 kHz): the fault.
-        let seen: usize = (0..20).filter(|_| c.step(&mut st, 0).fault.is_some()).count();
+        let seen: usize = (0..20)
+            .filter(|_| c.step(&mut st, 0).fault.is_some())
+            .count();
         assert_eq!(seen, 1);
         // Shorted (above 21 mA) too.
         let mut st = State::default();

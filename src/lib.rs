@@ -90,6 +90,7 @@ pub mod analog;
 pub mod bridge;
 pub mod config;
 pub mod control;
+pub mod device;
 pub mod guard;
 pub mod law;
 pub mod math;

@@ -261,10 +261,7 @@ impl Params {
             _ if name.starts_with("tuning.") => {
                 if a.tuning.is_none() {
                     // The defaults derived from the actuator become explicit values.
-                    a.tuning = Some(
-                        a.tuning_or_default()
-                            .map_err(|e| Refused::Invalid(e))?,
-                    );
+                    a.tuning = Some(a.tuning_or_default().map_err(Refused::Invalid)?);
                 }
                 match &mut a.tuning {
                     Some(t) => match name {
@@ -378,7 +375,11 @@ mod tests {
                 Ok(v) => v,
                 // The product's circuit is given by geometry.
                 Err(Refused::Unused) => {
-                    assert!(info.name.starts_with("magnetics.inductance."), "{}", info.name);
+                    assert!(
+                        info.name.starts_with("magnetics.inductance."),
+                        "{}",
+                        info.name
+                    );
                     continue;
                 }
                 Err(e) => panic!("{}: {e:?}", info.name),

@@ -196,6 +196,8 @@ impl fmt::Display for Value {
 }
 
 /// What the board sends.
+// Messages live on the stack while they are encoded, one at a time.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Message<'a> {
     /// The answer to a request.
@@ -308,12 +310,30 @@ pub struct Invalid<'a> {
 pub enum Reason<'a> {
     NotFinite,
     NotPositive,
-    BelowMin { min: f32 },
-    AboveMax { max: f32 },
-    NotBelow { other: &'a str, limit: f32 },
-    NotAbove { other: &'a str, limit: f32 },
-    Theorem1 { a: f32, b: f32, det_q: f32, alpha2_min: f32 },
-    Derived { what: &'a str, derived: f32 },
+    BelowMin {
+        min: f32,
+    },
+    AboveMax {
+        max: f32,
+    },
+    NotBelow {
+        other: &'a str,
+        limit: f32,
+    },
+    NotAbove {
+        other: &'a str,
+        limit: f32,
+    },
+    Theorem1 {
+        a: f32,
+        b: f32,
+        det_q: f32,
+        alpha2_min: f32,
+    },
+    Derived {
+        what: &'a str,
+        derived: f32,
+    },
 }
 
 impl From<config::Error> for Invalid<'static> {
@@ -732,6 +752,8 @@ impl fmt::Display for FrameError {
     }
 }
 
+impl core::error::Error for FrameError {}
+
 /// Encodes `message` as one frame, delimiter included, into `out`; returns its length.
 ///
 /// # Errors
@@ -1071,10 +1093,7 @@ mod tests {
                 f.clear();
             }
         }
-        assert_eq!(
-            results,
-            [Err(FrameError::TooLong), Ok(9)]
-        );
+        assert_eq!(results, [Err(FrameError::TooLong), Ok(9)]);
     }
 
     #[test]

@@ -103,10 +103,7 @@ impl<F: NorFlash> embedded_storage_async::nor_flash::NorFlash for Blocking<F> {
     }
 }
 
-impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash
-    for Blocking<F>
-{
-}
+impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash for Blocking<F> {}
 
 /// The parameter store.
 pub struct Store<F: NorFlash> {
@@ -141,7 +138,10 @@ pub fn encode(params: &Params, buf: &mut [u8; MAX_RECORD]) -> Result<usize, Stor
 /// Another format version, a CRC mismatch, bytes that do not decode.
 pub fn decode(record: &[u8]) -> Result<Params, LoadError<'static>> {
     let n = record.len();
-    let body_end = n.checked_sub(4).filter(|&e| e >= 2).ok_or(LoadError::Decode)?;
+    let body_end = n
+        .checked_sub(4)
+        .filter(|&e| e >= 2)
+        .ok_or(LoadError::Decode)?;
     let (covered, crc) = record.split_at(body_end);
     let mut version = [0u8; 2];
     version.copy_from_slice(covered.get(..2).ok_or(LoadError::Decode)?);
@@ -220,6 +220,11 @@ impl<F: NorFlash> Store<F> {
         block_on(self.map.store_item(&mut buf.0, &KEY, &record)).map_err(|e| store_error(&e))
     }
 
+    /// The flash, to read it through another view (see [`ReadOnly`]).
+    pub fn flash(&mut self) -> &mut F {
+        &mut self.map.flash().0
+    }
+
     /// The flash back.
     pub fn release(self) -> F {
         self.map.destroy().0 .0
@@ -267,7 +272,9 @@ impl<const PAGE: usize, const PAGES: usize> RamFlash<PAGE, PAGES> {
     }
 
     fn byte(&mut self, at: usize) -> Option<&mut u8> {
-        self.pages.get_mut(at / PAGE)?.get_mut(at % PAGE)
+        self.pages
+            .get_mut(at.checked_div(PAGE)?)?
+            .get_mut(at.checked_rem(PAGE)?)
     }
 }
 
@@ -299,10 +306,15 @@ impl<const PAGE: usize, const PAGES: usize> NorFlash for RamFlash<PAGE, PAGES> {
     fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
         let from = usize::try_from(from).map_err(|_| FlashError::OutOfBounds)?;
         let to = usize::try_from(to).map_err(|_| FlashError::OutOfBounds)?;
-        if from % PAGE != 0 || to % PAGE != 0 || to > self.capacity() {
+        let whole = |x: usize| x.checked_rem(PAGE) == Some(0);
+        if !whole(from) || !whole(to) || to > self.capacity() {
             return Err(FlashError::OutOfBounds);
         }
-        for page in self.pages.iter_mut().take(to / PAGE).skip(from / PAGE) {
+        let (first, last) = (from.checked_div(PAGE), to.checked_div(PAGE));
+        let (Some(first), Some(last)) = (first, last) else {
+            return Err(FlashError::OutOfBounds);
+        };
+        for page in self.pages.iter_mut().take(last).skip(first) {
             page.fill(0xFF);
         }
         Ok(())
@@ -399,7 +411,10 @@ mod tests {
         for k in 0..40 {
             p.actuator.board.supply_v = 12.0 + k as f32;
             store.save(&p).unwrap();
-            assert_eq!(store.load().unwrap().actuator.board.supply_v, 12.0 + k as f32);
+            assert_eq!(
+                store.load().unwrap().actuator.board.supply_v,
+                12.0 + k as f32
+            );
         }
         // A fresh store on the same flash (a restart) reads the last one.
         let flash = store.release();

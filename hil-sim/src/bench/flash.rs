@@ -40,30 +40,31 @@ impl NorFlashError for Cut {
     }
 }
 
-/// The flash.
+/// The flash, with erase pages of `P` bytes.
 #[derive(Clone, Debug)]
-pub struct Flash {
+pub struct Flash<const P: usize = PAGE> {
     bytes: Vec<u8>,
-    page: usize,
     steps: u64,
+    erases: u64,
     cut_at: Option<u64>,
     dead: bool,
 }
 
 impl Default for Flash {
+    /// The chip's: two 128 KiB sectors.
     fn default() -> Self {
-        Self::new(PAGE, PAGES)
+        Self::new(PAGES)
     }
 }
 
-impl Flash {
-    /// Erased, `pages` pages of `page` bytes.
+impl<const P: usize> Flash<P> {
+    /// Erased, `pages` pages.
     #[must_use]
-    pub fn new(page: usize, pages: usize) -> Self {
+    pub fn new(pages: usize) -> Self {
         Self {
-            bytes: vec![0xFF; page * pages],
-            page,
+            bytes: vec![0xFF; P * pages],
             steps: 0,
+            erases: 0,
             cut_at: None,
             dead: false,
         }
@@ -78,6 +79,12 @@ impl Flash {
     #[must_use]
     pub const fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Pages erased (or begun) since the flash was made.
+    #[must_use]
+    pub const fn erases(&self) -> u64 {
+        self.erases
     }
 
     /// Whether the power was cut.
@@ -119,11 +126,11 @@ impl Flash {
     }
 }
 
-impl ErrorType for Flash {
+impl<const P: usize> ErrorType for Flash<P> {
     type Error = Cut;
 }
 
-impl ReadNorFlash for Flash {
+impl<const P: usize> ReadNorFlash for Flash<P> {
     const READ_SIZE: usize = 1;
 
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Cut> {
@@ -142,21 +149,23 @@ impl ReadNorFlash for Flash {
     }
 }
 
-impl NorFlash for Flash {
+impl<const P: usize> NorFlash for Flash<P> {
     const WRITE_SIZE: usize = 1;
-    const ERASE_SIZE: usize = PAGE;
+    const ERASE_SIZE: usize = P;
 
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Cut> {
         self.alive()?;
         let (from, to) = (from as usize, to as usize);
-        if from % self.page != 0 || to % self.page != 0 || to > self.bytes.len() {
+        if from % P != 0 || to % P != 0 || to > self.bytes.len() {
             return Err(Cut::OutOfBounds);
         }
-        for start in (from..to).step_by(self.page) {
-            let page = &mut self.bytes[start..start + self.page];
-            if self.cut_at == Some(self.steps) {
+        for start in (from..to).step_by(P) {
+            self.erases += 1;
+            let cut = self.cut_at == Some(self.steps);
+            let page = &mut self.bytes[start..start + P];
+            if cut {
                 // Half erased: the first half of the page reads 0xFF, the rest as before.
-                page[..self.page / 2].fill(0xFF);
+                page[..P / 2].fill(0xFF);
                 self.step();
                 return Err(Cut::PowerLost);
             }
@@ -187,7 +196,7 @@ impl NorFlash for Flash {
     }
 }
 
-impl MultiwriteNorFlash for Flash {}
+impl<const P: usize> MultiwriteNorFlash for Flash<P> {}
 
 #[cfg(test)]
 mod tests {
@@ -195,7 +204,7 @@ mod tests {
 
     #[test]
     fn writes_clear_bits_and_a_cut_leaves_a_partial_byte() {
-        let mut f = Flash::new(256, 2);
+        let mut f = Flash::<256>::new(2);
         f.write(0, &[0x0F, 0xAA]).unwrap();
         let mut b = [0; 2];
         f.read(0, &mut b).unwrap();

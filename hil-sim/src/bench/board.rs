@@ -210,7 +210,7 @@ impl VirtualBoard {
             }
         }
         let mut store = Store::new(flash, store_range())
-            .map_err(|e| Error::param("store", f64::NAN, &format!("{e:?}")))?;
+            .map_err(|e| Error::param("store", f64::NAN, format!("{e:?}")))?;
         let mut boot = device::boot(&mut store, &self.defaults, &self.board, save.as_ref())
             .map_err(Error::Actuator)?;
         let mut flash = store.release();
@@ -220,13 +220,13 @@ impl VirtualBoard {
             self.cut_saves += 1;
             flash.power_on();
             let mut store = Store::new(flash, store_range())
-                .map_err(|e| Error::param("store", f64::NAN, &format!("{e:?}")))?;
+                .map_err(|e| Error::param("store", f64::NAN, format!("{e:?}")))?;
             boot = device::boot(&mut store, &self.defaults, &self.board, None)
                 .map_err(Error::Actuator)?;
             flash = store.release();
         }
         let store = Store::new(flash, store_range())
-            .map_err(|e| Error::param("store", f64::NAN, &format!("{e:?}")))?;
+            .map_err(|e| Error::param("store", f64::NAN, format!("{e:?}")))?;
         let controller = Controller::new(
             boot.install,
             self.period_ns,

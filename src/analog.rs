@@ -274,6 +274,8 @@ impl Config {
 }
 
 #[cfg(test)]
+// Codes from volts and milliamps: small, positive, rounded on purpose.
+#[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
 mod tests {
     use super::*;
 

@@ -4,6 +4,13 @@
 //! flash, the reset) stays in the firmware; `hil-sim` gives the same two halves a
 //! simulated plant, a pseudo-terminal and a simulated flash.
 //!
+//! **Where it runs today.** `hil-sim`'s virtual board runs it (the host tool is tested
+//! against that), and `tests/qemu_device.rs` runs a scripted session of it on the
+//! Cortex-M4F. The firmware binary does not yet: its interrupt still runs
+//! `Config::tick` through the guard on a built-in set point, and the serial link, the
+//! store over the chip's flash and the analog input's conversion are still to be wired
+//! in there.
+//!
 //! ## Two halves and three queues
 //!
 //! | half | runs in | owns |

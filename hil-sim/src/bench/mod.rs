@@ -6,6 +6,42 @@
 //! firmware share one definition. A capture is judged with the simulator's own metrics
 //! ([`crate::metrics`]) against the simulator's prediction for the board's parameters
 //! ([`prediction`]).
+//!
+//! ## Operate a board
+//!
+//! The host tool is the `bench` binary of this package; it talks to a serial port given by
+//! `--port` (or `EMA_PORT`). Without a board, start the virtual board: it runs the
+//! board's application ([`ema::device`], the same state machine, commands, parameter
+//! store and tick) against the simulated actuator, on a pseudo-terminal, so the tool uses
+//! its real serial path.
+//!
+//! ```text
+//! cargo build --release -p hil-sim --bin bench
+//! B=target/release/bench
+//! $B virtual --link /tmp/ema-board &        # prints the pseudo-terminal; stdin: injections
+//! export EMA_PORT=/tmp/ema-board
+//! $B status                                 # disarmed after every start, where the parameters came from
+//! $B arm                                    # closed loop, holding the present position
+//! $B move 3 --time-s 0.05                   # set point in mm, optional duration
+//! $B capture 2 --out out/capture            # CSV + PNG, metrics next to the simulator's prediction
+//! $B watch --signals x_m,i_a --seconds 2    # live values
+//! $B disarm
+//! $B set tuning.margin 0.6                  # disarmed only; refused values name field and value
+//! $B save                                   # stored in flash; the board restarts to write it
+//! $B restart && $B get tuning.margin        # kept
+//! $B clear                                  # after a fault, disarmed, once its cause is gone
+//! ```
+//!
+//! On the virtual board's standard input, one injection per line: `supply V` (the
+//! supply's voltage), `position-open`, `position-ok`, `analog-v V`, `analog-ma MA`,
+//! `cut-save STEP` (the power goes at that step of the next save). `virtual --speed 0`
+//! runs as fast as it can (the tests do).
+//!
+//! What the tests hold the board to: `tests/bench.rs` (a whole session over a
+//! pseudo-terminal: arm, move, capture with the simulator's metrics, a supply fault by
+//! name, clear, a set while armed refused, save and restart kept, power cuts during saves),
+//! `tests/power_cut.rs` (a power cut at every single step of a save leaves the old or the
+//! new set), `tests/frames.rs` (a million random and mutated frames).
 
 pub mod board;
 pub mod cli;

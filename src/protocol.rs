@@ -181,7 +181,7 @@ pub enum Value {
     Number(f32),
     /// Yes or no.
     Flag(bool),
-    /// One of a parameter's named choices, by index ([`crate::params::Info::choices`]).
+    /// One of a parameter's named choices, by index ([`crate::params::Kind::Choice`]).
     Choice(u8),
 }
 

@@ -46,7 +46,7 @@ pub struct Cli {
     /// Serial port of the board (or the virtual board's pseudo-terminal).
     #[arg(long, global = true, env = "EMA_PORT", value_name = "PATH")]
     pub port: Option<PathBuf>,
-    /// How long to wait for a reply [s].
+    /// How long to wait for a reply (s).
     #[arg(long, global = true, default_value_t = 2.0, value_name = "S")]
     pub timeout_s: f64,
     /// What to do.
@@ -65,11 +65,11 @@ pub enum Verb {
     Disarm,
     /// Clears a latched fault (disarmed, cause gone).
     Clear,
-    /// Moves to a position [mm].
+    /// Moves to a position (mm).
     Move {
-        /// Target [mm].
+        /// Target (mm).
         position_mm: f64,
-        /// Duration of the move [s] (default: as fast as the actuator allows).
+        /// Duration of the move (s) (default: as fast as the actuator allows).
         #[arg(long)]
         time_s: Option<f64>,
     },
@@ -110,7 +110,7 @@ pub struct WatchArgs {
     /// Ticks per sample.
     #[arg(long, default_value_t = 200)]
     pub decimation: u16,
-    /// How long [s].
+    /// How long (s).
     #[arg(long, default_value_t = 5.0)]
     pub seconds: f64,
 }
@@ -118,9 +118,9 @@ pub struct WatchArgs {
 /// Arguments of `capture`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct CaptureArgs {
-    /// Target of the move [mm].
+    /// Target of the move (mm).
     pub position_mm: f64,
-    /// Duration of the move [s] (default: as fast as the actuator allows).
+    /// Duration of the move (s) (default: as fast as the actuator allows).
     #[arg(long)]
     pub time_s: Option<f64>,
     /// Samples.

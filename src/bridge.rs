@@ -454,7 +454,7 @@ mod tests {
             x ^= x >> 17;
             x ^= x << 5;
             let u = (x % 2001) as f32 * 0.05 - 50.0;
-            if x % 97 == 0 {
+            if x.is_multiple_of(97) {
                 b.coast().unwrap();
                 coasts += 1;
             } else {

@@ -109,15 +109,20 @@
 )]
 
 pub mod actuator;
+pub mod analog;
 pub mod bridge;
 pub mod config;
 pub mod control;
+pub mod device;
 pub mod guard;
 pub mod law;
 pub mod math;
 pub mod model;
 pub mod observer;
+pub mod params;
+pub mod protocol;
 pub mod sense;
+pub mod store;
 pub mod supervisor;
 pub mod trace;
 pub mod trajectory;

@@ -192,7 +192,7 @@ impl Config {
         }
         if setpoint_m != state.target_m {
             let now = self.evaluate(state);
-            self.plan(state, now, setpoint_m);
+            self.plan(state, now, setpoint_m, self.settings.duration_min_s);
         }
         let r = self.evaluate(state);
         if state.moving {
@@ -201,12 +201,26 @@ impl Config {
         r
     }
 
-    fn plan(&self, state: &mut State, from: Reference, target_m: f32) {
-        let d = target_m - from.x_m;
-        let t = math::max(
-            self.duration_s(from.x_m, target_m),
-            self.settings.duration_min_s,
+    /// Plans a move to `target_m` from the present reference that lasts at least
+    /// `duration_s` (and never less than the limits allow): a move of a chosen duration,
+    /// ordered outside the tick. The next tick with `target_m` as its set point follows it
+    /// without planning again. Starts the reference at `x_m` if it has not started.
+    pub fn retarget(&self, state: &mut State, x_m: f32, target_m: f32, duration_s: f32) {
+        if !state.primed {
+            self.start(state, x_m);
+        }
+        let now = self.evaluate(state);
+        self.plan(
+            state,
+            now,
+            target_m,
+            math::max(duration_s, self.settings.duration_min_s),
         );
+    }
+
+    fn plan(&self, state: &mut State, from: Reference, target_m: f32, floor_s: f32) {
+        let d = target_m - from.x_m;
+        let t = math::max(self.duration_s(from.x_m, target_m), floor_s);
         if !(t.is_finite() && t > self.ts_s) {
             // Too short to shape, or no force available to move (a target at the closed
             // end, where the spring force vanishes): jump and let the feedback do it.

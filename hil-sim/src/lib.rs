@@ -48,6 +48,7 @@
 
 pub mod accuracy;
 pub mod actuator;
+pub mod bench;
 pub mod catalog;
 pub mod cli;
 pub mod compare;

@@ -45,6 +45,13 @@ pub struct Sample {
     pub psi_wb: f64,
     /// True bus voltage at the sample instant \[V\].
     pub vbus_v: f64,
+    /// Position as the tick measured it (converter code or ideal value, 0 when the
+    /// frame was implausible) \[m\].
+    pub x_meas_m: f64,
+    /// Coil current as the tick measured it \[A\].
+    pub i_meas_a: f64,
+    /// Average coil voltage the bridge was set to \[V\] (0 in coast).
+    pub u_drive_v: f64,
     /// Observer position estimate \[m\].
     pub x_est_m: f64,
     /// Observer velocity estimate \[m/s\].
@@ -273,6 +280,9 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
             i_a: now.i_a,
             psi_wb: now.psi_wb,
             vbus_v: now.vbus_v,
+            x_meas_m: f64::from(status.measurement.x_m),
+            i_meas_a: f64::from(status.measurement.i_a),
+            u_drive_v: f64::from(status.drive.u_v),
             x_est_m: f64::from(status.estimate.x_m),
             v_est_mps: f64::from(status.estimate.v_mps),
             d_est_mps2: f64::from(status.estimate.d_mps2),

@@ -65,10 +65,13 @@ pub enum Fault {
     /// fault output or the comparator on the current shunt pulled the PWM timer's break
     /// input (over-current, driver over-temperature or under-voltage).
     HardwareTrip = 20,
+    /// The 4-20 mA set-point loop reads outside 3.6-21 mA for a millisecond: a broken or
+    /// shorted wire (only with the analog set point, `setpoint.source = current_4_20ma`).
+    AnalogWireBreak = 21,
 }
 
 /// Number of fault codes (codes run `1..=FAULT_COUNT`).
-pub const FAULT_COUNT: usize = 20;
+pub const FAULT_COUNT: usize = 21;
 
 impl Fault {
     /// Every fault, in code order.
@@ -93,6 +96,7 @@ impl Fault {
         Fault::CoilShort,
         Fault::ModelBounds,
         Fault::HardwareTrip,
+        Fault::AnalogWireBreak,
     ];
 
     /// The stable numeric code.
@@ -131,6 +135,7 @@ impl Fault {
             Fault::CoilShort => "coil_short",
             Fault::ModelBounds => "model_bounds",
             Fault::HardwareTrip => "hardware_trip",
+            Fault::AnalogWireBreak => "analog_wire_break",
         }
     }
 
@@ -327,7 +332,7 @@ mod tests {
             assert_eq!(Fault::from_code(f.code()), Some(*f));
         }
         assert_eq!(Fault::from_code(0), None);
-        assert_eq!(Fault::from_code(21), None);
+        assert_eq!(Fault::from_code(22), None);
         assert_eq!(Fault::OverCurrent.to_string(), "over_current (code 6)");
         assert_eq!(Fault::HardwareTrip.to_string(), "hardware_trip (code 20)");
         // Names are unique (logs and files name faults by them).

@@ -8,6 +8,7 @@
 #![allow(dead_code, unused_macros)]
 
 pub mod plant;
+pub mod session;
 
 use core::convert::Infallible;
 use core::fmt;

@@ -13,7 +13,7 @@ use crate::targets::Targets;
 /// Arguments of `compare`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct Args {
-    /// Length of each run (the paper's step from 1 to 3 mm) [s].
+    /// Length of each run (the paper's step from 1 to 3 mm) (s).
     #[arg(long, default_value_t = 0.4)]
     pub duration_s: f64,
     /// Output folder [default: out/compare].

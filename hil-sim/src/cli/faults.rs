@@ -15,10 +15,10 @@ pub struct Args {
     /// A family member's name (see `hil-sim actuators`) or an actuator file.
     #[arg(default_value = "product")]
     pub actuator: String,
-    /// ISR rate [Hz] [default: the actuator's].
+    /// ISR rate (Hz; default: the actuator's).
     #[arg(long)]
     pub rate_hz: Option<f64>,
-    /// Supply [V] [default: the actuator's].
+    /// Supply (V; default: the actuator's).
     #[arg(long)]
     pub supply_v: Option<f64>,
     /// Output folder [default: out/faults].

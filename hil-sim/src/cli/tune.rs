@@ -19,8 +19,8 @@ pub struct Args {
     /// A family member's name (see `hil-sim actuators`) or an actuator file.
     #[arg(default_value = "product")]
     pub actuator: String,
-    /// Interrupt rates to design for at once [Hz] [default: the actuator's own, 20 kHz and
-    /// the one of 10, 20, 25, 40 and 50 kHz nearest to the actuator's].
+    /// Interrupt rates to design for at once (Hz; default: the actuator's own, 20 kHz and
+    /// the one of 10, 20, 25, 40 and 50 kHz nearest to the actuator's).
     #[arg(long, value_delimiter = ',')]
     pub rates_hz: Option<Vec<f64>>,
     /// Plants drawn to validate a candidate, per rate.
@@ -29,14 +29,14 @@ pub struct Args {
     /// RK4 substeps per period for the search.
     #[arg(long, default_value_t = 1)]
     pub substeps: u32,
-    /// Where to write the tuned file [default: beside an input file as
-    /// `<stem>.tuned.toml`; for a family member, in the output folder].
+    /// Where to write the tuned file (default: beside an input file as
+    /// `<stem>.tuned.toml`; for a family member, in the output folder).
     #[arg(long)]
     pub tuned: Option<PathBuf>,
     /// Hide the progress messages.
     #[arg(long)]
     pub quiet: bool,
-    /// Output folder [default: out/<actuator>-tune].
+    /// Output folder (default: `out/<actuator>-tune`).
     #[command(flatten)]
     pub output: super::Output,
 }

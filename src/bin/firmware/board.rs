@@ -274,7 +274,7 @@ const _: () = {
         "the board runs its control between 10 and 50 kHz (board.rate_hz)"
     );
     assert!(
-        TIM1_CLK_HZ % (2 * PWM_HZ) == 0,
+        TIM1_CLK_HZ.is_multiple_of(2 * PWM_HZ),
         "board.rate_hz must divide TIM1's 84 MHz half-clock (10, 20, 25, 40, 50 kHz ...)"
     );
     assert!(PWM_MAX_DUTY as u32 == PWM_ARR + 1);
@@ -282,13 +282,13 @@ const _: () = {
     assert!(ADC_CLK_HZ <= 36_000_000);
     // The conversions end early in the period: the tick has over 40 us left.
     assert!(ADC_SEQUENCE_NS < 10_000);
-    assert!(SYSCLK_HZ % HSE_HZ == 0);
+    assert!(SYSCLK_HZ.is_multiple_of(HSE_HZ));
     // The sequence: every signal in it exactly once, placed around the top of the count.
     assert!(slot(Signal::Position) < 3 && slot(Signal::Current) < 3 && slot(Signal::Vbus) < 3);
     assert!(slot(Signal::Position) != slot(Signal::Current));
     assert!(slot(Signal::Position) != slot(Signal::Vbus));
     assert!(slot(Signal::Current) != slot(Signal::Vbus));
-    assert!(TIM1_CLK_HZ % ADC_CLK_HZ == 0);
+    assert!(TIM1_CLK_HZ.is_multiple_of(ADC_CLK_HZ));
     assert!(ADC_TRIGGER_LEAD_COUNTS < PWM_ARR / 2);
     // The interrupt comes after the top: the tick's writes all wait for the next one.
     assert!(ADC_END_AFTER_TOP_COUNTS > 0 && ADC_END_AFTER_TOP_COUNTS < PWM_ARR / 2);

@@ -1,0 +1,520 @@
+//! The virtual board: the firmware's own application ([`ema::device`]: the same
+//! [`Controller`] in the "interrupt", the same [`Dispatcher`] in the "main loop", the same
+//! queues, the same [`device::boot`] and store on a simulated flash) on the simulated
+//! plant, converter and bridge of [`crate::sim`], one period at a time.
+//!
+//! What the firmware does with hardware, the virtual board does here:
+//!
+//! | firmware | virtual board |
+//! |---|---|
+//! | TIM1 + ADC1 interrupt, 20 kHz | [`VirtualBoard::tick`]: sample the plant, tick, advance the plant one period |
+//! | UART with DMA | bytes in and out ([`VirtualBoard::input`], [`VirtualBoard::output`]); [`VirtualBoard::serve`] moves them over a pseudo-terminal |
+//! | flash sectors 10 and 11 | [`Flash`], which can lose its power at any write |
+//! | a save restarts the chip, which writes the flash before it starts the control | [`VirtualBoard::restart`] with the set to save, the same [`device::boot`] |
+//! | the measured current-sensor zero | the nominal zero |
+//!
+//! The plant, the sensors and the supply are the actuator's judging scenario
+//! ([`crate::actuator::scenario`]: nominal plant, supply resistance `R/8`, averaged bridge)
+//! with a deterministic converter by default (12 bits, one sample of delay, no noise): a
+//! capture then equals, bit for bit, the simulator's run of the same scenario
+//! ([`super::prediction`]), which the end-to-end tests check. `noise` adds the typical
+//! converter noise.
+//!
+//! The armature starts at rest at the open end stop; injected faults
+//! ([`VirtualBoard::inject`]) act on the plant as `hil-sim faults` injects them.
+
+use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use ema::actuator::Actuator;
+use ema::bridge::HBridge;
+use ema::device::{
+    self, Action, Boot, Controller, Dispatcher, Inputs, Queues, Storage, Ticked, CAPTURE_CAPACITY,
+};
+use ema::guard::{End, Start};
+use ema::params::{Board, Params};
+use ema::protocol::{LoadError, Mode, Sample, StoreError};
+use ema::store::{ReadOnly, Store};
+
+use super::flash::{Flash, PAGE, PAGES};
+use crate::hal::{self, Adc, Converter, Lines, Pin, Pwm};
+use crate::scenario::{BridgeMode, Initial, Scenario, Sensors};
+use crate::sim::Stepper;
+use crate::Error;
+
+/// How the virtual board is made.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// The actuator the "firmware" is built for (its built-in parameters) and the plant.
+    pub actuator: Actuator,
+    /// Typical converter noise (1.5 codes RMS, seed 1) instead of none.
+    pub noise: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            actuator: Actuator::PRODUCT,
+            noise: false,
+        }
+    }
+}
+
+/// A fault to inject into the plant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Injection {
+    /// The supply's source voltage \[V\].
+    Supply(f64),
+    /// The position sensor's output at 0 V (open) or back to normal.
+    PositionOpen(bool),
+    /// The analog set-point input: a voltage \[V\] or a loop current \[A\] (as the source
+    /// chosen reads it: the code is computed with that scale).
+    Analog {
+        /// The value.
+        value: f64,
+        /// A loop current (else a voltage).
+        current: bool,
+    },
+    /// The power goes at this step of the next save (see [`Flash::cut_after`]).
+    CutSave(u64),
+}
+
+/// The plant side: what the firmware's timer, converter and bridge see.
+struct Plant {
+    stepper: Stepper,
+    converter: Converter,
+    bridge: HBridge<Pwm, Pin>,
+    lines: Lines,
+    mode: BridgeMode,
+    position_open: bool,
+    analog_code: u16,
+}
+
+/// The application side, rebuilt at every start.
+struct Running {
+    controller: Controller<Vec<Sample>>,
+    dispatcher: Dispatcher,
+    queues: Queues,
+    store: Store<Flash>,
+}
+
+/// A virtual board.
+pub struct VirtualBoard {
+    options: Options,
+    scenario: Scenario,
+    defaults: Params,
+    board: Board,
+    period_ns: u32,
+    plant: Plant,
+    running: Option<Running>,
+    flash: Option<Flash>,
+    save_cut: Option<u64>,
+    rx: Vec<u8>,
+    tx: Vec<u8>,
+    ticks: u64,
+    starts: u32,
+    last_boot: Option<Boot>,
+    cut_saves: u32,
+}
+
+/// The store's flash range (two 128 KiB pages).
+fn store_range() -> std::ops::Range<u32> {
+    0..u32::try_from(PAGE * PAGES).unwrap_or(u32::MAX)
+}
+
+/// The scenario the virtual board runs (see the module documentation): at rest at the
+/// open stop; the reference is the board's, not the scenario's.
+///
+/// # Errors
+/// An actuator whose settings do not derive.
+pub fn scenario(actuator: &Actuator, noise: bool) -> Result<Scenario, Error> {
+    let mut sc = crate::actuator::scenario("virtual-board", actuator)?;
+    sc.sensors = Sensors::Adc(if noise {
+        Adc::typical()
+    } else {
+        Adc {
+            delay_samples: 1,
+            ..Adc::default()
+        }
+    });
+    sc.initial = Initial::default();
+    Ok(sc)
+}
+
+impl VirtualBoard {
+    /// Powers a new board on: an erased flash, so the built-in parameters.
+    ///
+    /// # Errors
+    /// An actuator whose settings do not derive.
+    pub fn new(options: Options) -> Result<Self, Error> {
+        Self::with_flash(options, Flash::default())
+    }
+
+    /// Powers a board on with `flash` (as another board left it).
+    ///
+    /// # Errors
+    /// An actuator whose settings do not derive.
+    pub fn with_flash(options: Options, flash: Flash) -> Result<Self, Error> {
+        let scenario = scenario(&options.actuator, options.noise)?;
+        let defaults = Params::new(options.actuator);
+        let board = Board {
+            rate_hz: options.actuator.board.rate_hz,
+            current_zero_code: None,
+        };
+        let plant = Plant::new(&scenario)?;
+        let period_ns = (1e9 / scenario.rate_hz()).round() as u32;
+        let mut b = Self {
+            options,
+            scenario,
+            defaults,
+            board,
+            period_ns,
+            plant,
+            running: None,
+            flash: Some(flash),
+            save_cut: None,
+            rx: Vec::new(),
+            tx: Vec::new(),
+            ticks: 0,
+            starts: 0,
+            last_boot: None,
+            cut_saves: 0,
+        };
+        b.start(None)?;
+        Ok(b)
+    }
+
+    /// The scenario the plant runs.
+    #[must_use]
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
+    }
+
+    /// The options it was made with.
+    #[must_use]
+    pub fn options(&self) -> &Options {
+        &self.options
+    }
+
+    /// Starts (after a power-on or a restart): stores `save` first when given, then loads.
+    fn start(&mut self, save: Option<Params>) -> Result<(), Error> {
+        let mut flash = match self.running.take() {
+            Some(r) => r.store.release(),
+            None => self.flash.take().unwrap_or_default(),
+        };
+        flash.power_on();
+        if save.is_some() {
+            if let Some(step) = self.save_cut.take() {
+                flash.cut_after(step);
+            }
+        }
+        let mut store = Store::new(flash, store_range())
+            .map_err(|e| Error::param("store", f64::NAN, format!("{e:?}")))?;
+        let mut boot = device::boot(&mut store, &self.defaults, &self.board, save.as_ref())
+            .map_err(Error::Actuator)?;
+        let mut flash = store.release();
+        if flash.is_dead() {
+            // The power went during the save: the board is off. It comes back on with
+            // whatever the flash holds.
+            self.cut_saves += 1;
+            flash.power_on();
+            let mut store = Store::new(flash, store_range())
+                .map_err(|e| Error::param("store", f64::NAN, format!("{e:?}")))?;
+            boot = device::boot(&mut store, &self.defaults, &self.board, None)
+                .map_err(Error::Actuator)?;
+            flash = store.release();
+        }
+        let store = Store::new(flash, store_range())
+            .map_err(|e| Error::param("store", f64::NAN, format!("{e:?}")))?;
+        let controller = Controller::new(
+            boot.install,
+            self.period_ns,
+            vec![Sample::default(); CAPTURE_CAPACITY],
+        );
+        let capacity = u16::try_from(CAPTURE_CAPACITY).unwrap_or(u16::MAX);
+        let dispatcher = Dispatcher::new(self.board, self.defaults, &boot, capacity);
+        self.running = Some(Running {
+            controller,
+            dispatcher,
+            queues: Queues::new(),
+            store,
+        });
+        self.rx.clear();
+        self.starts += 1;
+        self.last_boot = Some(boot);
+        Ok(())
+    }
+
+    /// A power cycle (or a reset): the application starts again from the flash; the plant
+    /// keeps its state.
+    ///
+    /// # Errors
+    /// As [`VirtualBoard::new`].
+    pub fn restart(&mut self) -> Result<(), Error> {
+        self.start(None)
+    }
+
+    /// Injects a fault into the plant (or arms a power cut for the next save).
+    pub fn inject(&mut self, injection: Injection) {
+        match injection {
+            Injection::Supply(v) => self.plant.stepper.set_supply_v(v),
+            Injection::PositionOpen(open) => self.plant.position_open = open,
+            Injection::Analog { value, current } => {
+                let per_code = if current {
+                    f64::from(ema::analog::CURRENT_A_PER_CODE)
+                } else {
+                    f64::from(ema::analog::VOLTAGE_V_PER_CODE)
+                };
+                self.plant.analog_code = (value / per_code).round().clamp(0.0, 4095.0) as u16;
+            }
+            Injection::CutSave(step) => self.save_cut = Some(step),
+        }
+    }
+
+    /// Bytes from the host.
+    pub fn input(&mut self, bytes: &[u8]) {
+        self.rx.extend_from_slice(bytes);
+    }
+
+    /// Bytes for the host (taken).
+    pub fn output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.tx)
+    }
+
+    /// Ticks since the board was made.
+    #[must_use]
+    pub const fn ticks(&self) -> u64 {
+        self.ticks
+    }
+
+    /// How often the application started (power-on, restarts, saves).
+    #[must_use]
+    pub const fn starts(&self) -> u32 {
+        self.starts
+    }
+
+    /// Saves the power cut short (the board then came back on).
+    #[must_use]
+    pub const fn cut_saves(&self) -> u32 {
+        self.cut_saves
+    }
+
+    /// How the last start found its parameters.
+    #[must_use]
+    pub fn last_boot(&self) -> Option<&Boot> {
+        self.last_boot.as_ref()
+    }
+
+    /// The operating state.
+    #[must_use]
+    pub fn mode(&self) -> Mode {
+        self.running
+            .as_ref()
+            .map_or(Mode::Disarmed, |r| r.controller.mode())
+    }
+
+    /// The set point \[m\].
+    #[must_use]
+    pub fn setpoint_m(&self) -> f32 {
+        self.running
+            .as_ref()
+            .map_or(0.0, |r| r.controller.setpoint_m())
+    }
+
+    /// The parameters in use.
+    #[must_use]
+    pub fn params(&self) -> Params {
+        self.running
+            .as_ref()
+            .map_or(self.defaults, |r| *r.dispatcher.params())
+    }
+
+    /// Frames refused and telemetry dropped.
+    #[must_use]
+    pub fn counts(&self) -> device::Counts {
+        self.running
+            .as_ref()
+            .map(|r| r.dispatcher.counts())
+            .unwrap_or_default()
+    }
+
+    /// The true position \[m\].
+    #[must_use]
+    pub fn position_m(&self) -> f64 {
+        self.plant.stepper.sample().x_m
+    }
+
+    /// One control period: the dispatcher takes the bytes it can, the controller ticks on
+    /// the plant's conversions, the plant advances one period, the dispatcher completes
+    /// answers and telemetry; a save or restart the dispatcher asked for happens once its
+    /// answer is out.
+    ///
+    /// # Errors
+    /// A restart that fails (an actuator whose settings do not derive).
+    pub fn tick(&mut self) -> Result<Ticked, Error> {
+        let Some(run) = self.running.as_mut() else {
+            return Ok(Ticked::default());
+        };
+        let (mut main, mut isr) = run.queues.split();
+        let taken = {
+            let mut ro = ReadOnlyStore(&mut run.store);
+            run.dispatcher.receive(&self.rx, &mut main, &mut ro)
+        };
+        self.rx.drain(..taken);
+
+        let truth = self.plant.stepper.sample();
+        let x = if self.plant.position_open {
+            -1.0
+        } else {
+            truth.x_m
+        };
+        let frame = self.plant.converter.sample(x, truth.i_a, truth.vbus_v);
+        let now = (self.ticks.wrapping_mul(u64::from(self.period_ns))) as u32;
+        let inputs = Inputs {
+            frame,
+            analog: self.plant.analog_code,
+            start: Start {
+                now,
+                hardware_trip: false,
+            },
+            break_active: false,
+        };
+        let ticked = run
+            .controller
+            .tick(&mut self.plant.bridge, &inputs, &mut isr, End::default);
+        self.plant
+            .stepper
+            .advance(self.plant.lines.drive(), self.plant.mode);
+        self.ticks += 1;
+
+        run.dispatcher.poll(&mut main);
+        let out = run.dispatcher.tx().len();
+        self.tx.extend_from_slice(run.dispatcher.tx());
+        run.dispatcher.sent(out);
+        match run.dispatcher.take_action() {
+            Some(Action::Save(p)) => self.start(Some(p))?,
+            Some(Action::Restart) => self.start(None)?,
+            None => {}
+        }
+        Ok(ticked)
+    }
+
+    /// Runs `n` ticks.
+    ///
+    /// # Errors
+    /// As [`VirtualBoard::tick`].
+    pub fn run(&mut self, n: u64) -> Result<(), Error> {
+        for _ in 0..n {
+            self.tick()?;
+        }
+        Ok(())
+    }
+
+    /// Serves a host on `port` until `stop` is set: ticks in batches of a millisecond,
+    /// `speed` times real time (`None`: as fast as it can), moving bytes between the port
+    /// and the board, and calling `between` (injections), between batches.
+    ///
+    /// # Errors
+    /// The port failing, or a restart that fails.
+    pub fn serve<P: Read + Write>(
+        &mut self,
+        port: &mut P,
+        speed: Option<f64>,
+        stop: &AtomicBool,
+        mut between: impl FnMut(&mut Self),
+    ) -> anyhow::Result<()> {
+        let batch = ((self.scenario.rate_hz() / 1000.0).round() as u64).max(1);
+        let start = Instant::now();
+        let t0 = self.ticks;
+        let mut buf = [0u8; 1024];
+        while !stop.load(Ordering::Relaxed) {
+            match port.read(&mut buf) {
+                Ok(n) => self.input(&buf[..n]),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::Interrupted
+                    ) => {}
+                Err(e) => return Err(e.into()),
+            }
+            between(self);
+            self.run(batch)?;
+            let out = self.output();
+            if !out.is_empty() {
+                port.write_all(&out)?;
+                port.flush()?;
+            }
+            if let Some(speed) = speed {
+                let board_s = (self.ticks - t0) as f64 / self.scenario.rate_hz();
+                let ahead = board_s / speed - start.elapsed().as_secs_f64();
+                if ahead > 0.0 {
+                    std::thread::sleep(Duration::from_secs_f64(ahead));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The flash, for a test that inspects it or moves it to another board.
+    #[must_use]
+    pub fn into_flash(mut self) -> Flash {
+        match self.running.take() {
+            Some(r) => r.store.release(),
+            None => self.flash.take().unwrap_or_default(),
+        }
+    }
+}
+
+/// The store as the main loop sees it: read-only (on the chip a write would stall the
+/// control interrupt; see the firmware's notes).
+struct ReadOnlyStore<'a>(&'a mut Store<Flash>);
+
+impl Storage for ReadOnlyStore<'_> {
+    fn load(&mut self) -> Result<Params, LoadError<'static>> {
+        // The same flash, through a wrapper that refuses writes: a load that would need a
+        // repair fails as on the chip.
+        let mut copy =
+            Store::new(ReadOnly(self.0.flash()), store_range()).map_err(LoadError::Store)?;
+        copy.load()
+    }
+}
+
+impl Plant {
+    fn new(sc: &Scenario) -> Result<Self, Error> {
+        let plant = sc.plant.resolve(&sc.controller.plant);
+        let stepper = Stepper::for_scenario(sc, plant, sc.integration.substeps)?;
+        let converter = match &sc.sensors {
+            Sensors::Adc(adc) => adc.start(&sc.controller.sense),
+            Sensors::Ideal => Adc::default().start(&sc.controller.sense),
+        };
+        let (pwm, dir, en, lines) = hal::bridge_io(sc.bridge.max_duty);
+        let bridge = match HBridge::new(pwm, dir, en) {
+            Ok(b) => b,
+            Err(e) => match e {},
+        };
+        Ok(Self {
+            stepper,
+            converter,
+            bridge,
+            lines,
+            mode: sc.bridge.mode,
+            position_open: false,
+            analog_code: 0,
+        })
+    }
+}
+
+/// A store error as text.
+#[must_use]
+pub fn store_error(e: StoreError) -> &'static str {
+    match e {
+        StoreError::Flash => "the flash refused an operation",
+        StoreError::Full => "no room left",
+        StoreError::Corrupted => "corruption the store could not repair",
+        StoreError::Internal => "the store's own check failed",
+        StoreError::TooBig => "the set does not fit a record",
+    }
+}

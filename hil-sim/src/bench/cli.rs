@@ -1,0 +1,831 @@
+//! `bench`: the host tool for a board on a bench, over a serial port (the board's UART,
+//! through a USB-serial adapter) or the virtual board's pseudo-terminal.
+//!
+//! | command | what |
+//! |---|---|
+//! | `status` | state, latched fault, fault counters, measurements, interrupt cycles, parameters' source |
+//! | `arm`, `disarm`, `clear` | operating state |
+//! | `move MM [--time-s S]` | a move of the set point |
+//! | `get [NAME]`, `set NAME VALUE` | parameters (all of them without a name) |
+//! | `save`, `load`, `defaults`, `restart` | parameters in flash, the board |
+//! | `watch` | live values with a progress display |
+//! | `capture MM` | a step response: CSV and PNG, the simulator's metrics and its prediction overlaid |
+//! | `virtual` | runs the virtual board on a pseudo-terminal and prints its path |
+//!
+//! Exit codes: 0 done, 1 refused or failed (the message says why), 2 bad usage.
+
+use std::io::{BufRead, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Context};
+use clap::{Parser, Subcommand};
+use ema::actuator::{Actuator, Magnetics};
+use ema::params::{self, Kind, Params};
+use ema::protocol::{
+    CaptureState, Command, Message, Mode, Reply, Signal, Status, Trigger, Value, CHUNK_SAMPLES,
+};
+use serialport::SerialPort;
+
+use super::board::{Injection, Options, VirtualBoard};
+use super::link::Link;
+use super::{fault_name, Capture};
+use crate::report::{self, sig, Figure, Panel, Series, Table};
+
+/// The link's speed \[baud\]: what a board's UART is to run at (a pseudo-terminal, the
+/// virtual board's, ignores it).
+pub const BAUD: u32 = 460_800;
+
+/// Host tool for a board on a bench (or the virtual board).
+#[derive(Debug, Parser)]
+#[command(name = "bench", version, about, long_about = None)]
+pub struct Cli {
+    /// Serial port of the board (or the virtual board's pseudo-terminal).
+    #[arg(long, global = true, env = "EMA_PORT", value_name = "PATH")]
+    pub port: Option<PathBuf>,
+    /// How long to wait for a reply (s).
+    #[arg(long, global = true, default_value_t = 2.0, value_name = "S")]
+    pub timeout_s: f64,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Verb,
+}
+
+/// The commands.
+#[derive(Debug, Subcommand)]
+pub enum Verb {
+    /// State, fault, counters, measurements, cycles per tick, parameters' source.
+    Status,
+    /// Closed loop, holding the present position.
+    Arm,
+    /// Bridge off.
+    Disarm,
+    /// Clears a latched fault (disarmed, cause gone).
+    Clear,
+    /// Moves to a position (mm).
+    Move {
+        /// Target (mm).
+        position_mm: f64,
+        /// Duration of the move (s) (default: as fast as the actuator allows).
+        #[arg(long)]
+        time_s: Option<f64>,
+    },
+    /// A parameter's value, or all of them.
+    Get {
+        /// Dotted name (`coil.rated_current_a`).
+        name: Option<String>,
+    },
+    /// Changes a parameter (disarmed; not stored until `save`).
+    Set {
+        /// Dotted name.
+        name: String,
+        /// Value: a number, true/false, or a choice's name.
+        value: String,
+    },
+    /// Stores the parameters in flash (the board restarts to write them).
+    Save,
+    /// Reloads the stored parameters.
+    Load,
+    /// Back to the built-in parameters (not stored until `save`).
+    Defaults,
+    /// Restarts the board.
+    Restart,
+    /// Live values.
+    Watch(WatchArgs),
+    /// Captures a move's response and compares it with the simulator's prediction.
+    Capture(CaptureArgs),
+    /// Runs the virtual board on a pseudo-terminal.
+    Virtual(VirtualArgs),
+}
+
+/// Arguments of `watch`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct WatchArgs {
+    /// Signals, comma separated (reference_m, x_m, v_mps, i_a, u_v, duty, vbus_v, analog_m).
+    #[arg(long, default_value = "x_m,i_a,u_v", value_delimiter = ',')]
+    pub signals: Vec<String>,
+    /// Ticks per sample.
+    #[arg(long, default_value_t = 200)]
+    pub decimation: u16,
+    /// How long (s).
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+}
+
+/// Arguments of `capture`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CaptureArgs {
+    /// Target of the move (mm).
+    pub position_mm: f64,
+    /// Duration of the move (s) (default: as fast as the actuator allows).
+    #[arg(long)]
+    pub time_s: Option<f64>,
+    /// Samples.
+    #[arg(long, default_value_t = 256)]
+    pub samples: u16,
+    /// Ticks per sample.
+    #[arg(long, default_value_t = 20)]
+    pub decimation: u16,
+    /// The prediction's converter has the typical noise (as `virtual --noise`).
+    #[arg(long)]
+    pub noise: bool,
+    /// Folder for the files.
+    #[arg(long, default_value = "out/capture")]
+    pub out: PathBuf,
+}
+
+/// Arguments of `virtual`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct VirtualArgs {
+    /// The actuator file the virtual firmware is built for (default: the product's).
+    #[arg(long)]
+    pub actuator: Option<String>,
+    /// Times real time (default 1); 0: as fast as it can.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// Typical converter noise.
+    #[arg(long)]
+    pub noise: bool,
+    /// Also make this path a link to the pseudo-terminal.
+    #[arg(long)]
+    pub link: Option<PathBuf>,
+}
+
+/// Runs the tool on the process's arguments.
+#[must_use]
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    match dispatch(cli, &mut out) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let _ = out.flush();
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Opens the serial port at `path`.
+///
+/// # Errors
+/// The port cannot be opened.
+pub fn open(
+    path: &std::path::Path,
+    timeout: Duration,
+) -> anyhow::Result<Link<serialport::TTYPort>> {
+    let port = serialport::new(path.to_string_lossy(), BAUD)
+        .timeout(Duration::from_millis(20))
+        .open_native()
+        .with_context(|| format!("cannot open {}", path.display()))?;
+    Ok(Link::new(port, timeout))
+}
+
+/// Runs one parsed command line.
+///
+/// # Errors
+/// A refusal or failure, described.
+pub fn dispatch(cli: Cli, out: &mut dyn Write) -> anyhow::Result<()> {
+    if let Verb::Virtual(a) = &cli.command {
+        return run_virtual(a, out);
+    }
+    let Some(port) = &cli.port else {
+        bail!("give the board's serial port: --port PATH (or EMA_PORT)");
+    };
+    let mut link = open(port, Duration::from_secs_f64(cli.timeout_s))?;
+    run(&mut link, cli.command, out)
+}
+
+/// Runs one command over `link`.
+///
+/// # Errors
+/// A refusal or failure, described.
+pub fn run<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    verb: Verb,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    match verb {
+        Verb::Status => {
+            let s = status(link)?;
+            write!(out, "{}", status_text(&s))?;
+        }
+        Verb::Arm => {
+            link.done(Command::Arm)?;
+            writeln!(out, "armed: holding the present position")?;
+        }
+        Verb::Disarm => {
+            link.done(Command::Disarm)?;
+            writeln!(out, "disarmed: bridge off")?;
+        }
+        Verb::Clear => {
+            link.done(Command::Clear)?;
+            writeln!(out, "cleared: disarmed")?;
+        }
+        Verb::Move {
+            position_mm,
+            time_s,
+        } => {
+            link.done(Command::Move {
+                position_m: (position_mm * 1e-3) as f32,
+                time_s: time_s.map(|t| t as f32),
+            })?;
+            writeln!(out, "moving to {position_mm} mm")?;
+        }
+        Verb::Get { name: Some(name) } => {
+            let v = get(link, &name)?;
+            writeln!(out, "{name} = {}", value_text(&name, v))?;
+        }
+        Verb::Get { name: None } => {
+            let mut t = Table::new(["parameter", "value", "note"]);
+            for info in params::all() {
+                match get(link, info.name) {
+                    Ok(v) => t.push([
+                        info.name.to_owned(),
+                        value_text(info.name, v),
+                        info.fixed.map_or(String::new(), |w| format!("fixed: {w}")),
+                    ]),
+                    Err(e) => t.push([info.name.to_owned(), "-".into(), format!("{e}")]),
+                }
+            }
+            write!(out, "{}", t.to_text())?;
+        }
+        Verb::Set { name, value } => {
+            let v = parse_value(&name, &value)?;
+            link.done(Command::Set {
+                name: &name,
+                value: v,
+            })?;
+            writeln!(
+                out,
+                "{name} = {} (not stored until `save`)",
+                value_text(&name, v)
+            )?;
+        }
+        Verb::Save => {
+            link.forget_started();
+            link.done(Command::Save)?;
+            let started = link.wait_started(Duration::from_secs(10))?;
+            match started.saved {
+                Some(Ok(())) => writeln!(
+                    out,
+                    "saved; the board restarted with the {}",
+                    super::source(&started.params)
+                )?,
+                Some(Err(e)) => bail!(
+                    "the save failed: {}; the board restarted with the {}",
+                    super::board::store_error(e),
+                    super::source(&started.params)
+                ),
+                None => bail!("the board restarted without saving"),
+            }
+        }
+        Verb::Load => {
+            link.done(Command::Load)?;
+            writeln!(out, "loaded the stored parameters")?;
+        }
+        Verb::Defaults => {
+            link.done(Command::Defaults)?;
+            writeln!(out, "built-in parameters in use (not stored until `save`)")?;
+        }
+        Verb::Restart => {
+            link.forget_started();
+            link.done(Command::Restart)?;
+            let started = link.wait_started(Duration::from_secs(10))?;
+            writeln!(out, "restarted with the {}", super::source(&started.params))?;
+        }
+        Verb::Watch(a) => watch(link, &a, out)?,
+        Verb::Capture(a) => {
+            capture(link, &a, out)?;
+        }
+        Verb::Virtual(_) => bail!("`virtual` runs on its own"),
+    }
+    Ok(())
+}
+
+/// The board's status.
+///
+/// # Errors
+/// No reply, or an unexpected one.
+pub fn status<P: std::io::Read + Write>(link: &mut Link<P>) -> anyhow::Result<Status<'static>> {
+    let f = link.request(Command::Status)?;
+    let mut scratch = Vec::new();
+    match f.message(&mut scratch)? {
+        Message::Reply {
+            reply: Reply::Status(s),
+            ..
+        } => Ok(Status {
+            params: super::owned_source(&s.params),
+            ..s
+        }),
+        other => Err(anyhow!("unexpected reply: {other:?}")),
+    }
+}
+
+/// A status as the `status` command prints it.
+#[must_use]
+pub fn status_text(s: &Status<'_>) -> String {
+    let mut t = Table::new(["", ""]);
+    let row = |t: &mut Table, k: &str, v: String| t.push([k.to_owned(), v]);
+    row(&mut t, "state", s.mode.name().into());
+    row(
+        &mut t,
+        "latched fault",
+        s.fault.map_or("none".into(), fault_name),
+    );
+    row(
+        &mut t,
+        "arming",
+        s.not_ready
+            .map_or("possible".into(), |f| format!("refused: {}", fault_name(f))),
+    );
+    let counts: Vec<String> = s
+        .fault_counts
+        .iter()
+        .enumerate()
+        .filter(|(_, &n)| n > 0)
+        .map(|(k, n)| format!("{} x{n}", fault_name(u8::try_from(k + 1).unwrap_or(0))))
+        .collect();
+    row(
+        &mut t,
+        "faults since start",
+        if counts.is_empty() {
+            "none".into()
+        } else {
+            counts.join(", ")
+        },
+    );
+    row(
+        &mut t,
+        "position",
+        format!("{} mm", sig(f64::from(s.x_m) * 1e3, 4)),
+    );
+    row(
+        &mut t,
+        "set point",
+        format!("{} mm", sig(f64::from(s.setpoint_m) * 1e3, 4)),
+    );
+    row(
+        &mut t,
+        "coil current",
+        format!("{} A", sig(f64::from(s.i_a), 3)),
+    );
+    row(
+        &mut t,
+        "bus voltage",
+        format!("{} V", sig(f64::from(s.vbus_v), 4)),
+    );
+    row(
+        &mut t,
+        "cycles per tick",
+        if s.isr_cycles_max == 0 {
+            "not measured (virtual board)".into()
+        } else {
+            format!("mean {} max {}", s.isr_cycles_mean, s.isr_cycles_max)
+        },
+    );
+    row(&mut t, "overruns", s.overruns.to_string());
+    row(&mut t, "ticks", s.ticks.to_string());
+    row(
+        &mut t,
+        "parameters",
+        format!(
+            "{}{}",
+            super::source(&s.params),
+            if s.unsaved {
+                ", changed since (unsaved)"
+            } else {
+                ""
+            }
+        ),
+    );
+    row(
+        &mut t,
+        "capture",
+        match s.capture {
+            CaptureState::Idle => "none".into(),
+            CaptureState::Waiting => "waiting for a move".into(),
+            CaptureState::Running(n) => format!("recording ({n} samples)"),
+            CaptureState::Done(n) => format!("{n} samples ready"),
+        },
+    );
+    row(
+        &mut t,
+        "link",
+        format!(
+            "{} frames rejected, {} telemetry samples dropped",
+            s.frames_rejected, s.telemetry_dropped
+        ),
+    );
+    t.to_text()
+}
+
+/// A parameter's value.
+///
+/// # Errors
+/// A refusal (described), or no reply.
+pub fn get<P: std::io::Read + Write>(link: &mut Link<P>, name: &str) -> anyhow::Result<Value> {
+    let f = link.request(Command::Get { name })?;
+    let mut scratch = Vec::new();
+    match f.message(&mut scratch)? {
+        Message::Reply {
+            reply: Reply::Value(v),
+            ..
+        } => Ok(v),
+        Message::Reply {
+            reply: Reply::Refused(r),
+            ..
+        } => Err(anyhow!("{}", super::refusal(&r))),
+        other => Err(anyhow!("unexpected reply: {other:?}")),
+    }
+}
+
+/// Every parameter of the board, read one by one.
+///
+/// # Errors
+/// As [`get`].
+pub fn read_params<P: std::io::Read + Write>(link: &mut Link<P>) -> anyhow::Result<Params> {
+    let kind = get(link, "magnetics.kind")?;
+    let mut a = Actuator::PRODUCT;
+    if kind == Value::Choice(1) {
+        a.magnetics = Magnetics::Inductance {
+            open_h: 1.0,
+            closed_h: 2.0,
+        };
+    }
+    let mut p = Params::new(a);
+    for info in params::all() {
+        if info.fixed.is_some() || matches!(p.get(info.name), Err(params::Refused::Unused)) {
+            continue;
+        }
+        let v = get(link, info.name)?;
+        p.set(info.name, v)
+            .map_err(|e| anyhow!("{}: {e:?}", info.name))?;
+    }
+    if let Value::Number(r) = get(link, "board.rate_hz")? {
+        p.actuator.board.rate_hz = r;
+    }
+    Ok(p)
+}
+
+/// A value as text, choices by name.
+#[must_use]
+pub fn value_text(name: &str, v: Value) -> String {
+    match (params::info(name).map(|i| i.kind), v) {
+        (Some(Kind::Choice(names)), Value::Choice(c)) => names
+            .get(usize::from(c))
+            .map_or_else(|| format!("choice {c}"), |s| (*s).to_owned()),
+        (_, v) => v.to_string(),
+    }
+}
+
+/// Parses a value for the parameter `name`.
+///
+/// # Errors
+/// An unknown name, or text that is not a value of its kind.
+pub fn parse_value(name: &str, text: &str) -> anyhow::Result<Value> {
+    let info = params::info(name).ok_or_else(|| anyhow!("no parameter is called `{name}`"))?;
+    Ok(match info.kind {
+        Kind::Number => Value::Number(
+            text.parse::<f32>()
+                .map_err(|_| anyhow!("{name}: `{text}` is not a number"))?,
+        ),
+        Kind::Flag => Value::Flag(
+            text.parse::<bool>()
+                .map_err(|_| anyhow!("{name}: `{text}` is not true or false"))?,
+        ),
+        Kind::Choice(names) => {
+            let k = names
+                .iter()
+                .position(|n| *n == text)
+                .ok_or_else(|| anyhow!("{name}: `{text}` is none of {}", names.join(", ")))?;
+            Value::Choice(u8::try_from(k)?)
+        }
+    })
+}
+
+fn signal_mask(names: &[String]) -> anyhow::Result<(u16, Vec<Signal>)> {
+    let mut mask = 0;
+    let mut chosen = Vec::new();
+    for n in names {
+        let s = Signal::ALL
+            .into_iter()
+            .find(|s| s.name() == n)
+            .ok_or_else(|| anyhow!("no signal is called `{n}`"))?;
+        mask |= s.bit();
+    }
+    for s in Signal::ALL {
+        if mask & s.bit() != 0 {
+            chosen.push(s);
+        }
+    }
+    Ok((mask, chosen))
+}
+
+fn watch<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    a: &WatchArgs,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    let (mask, chosen) = signal_mask(&a.signals)?;
+    link.done(Command::Stream {
+        signals: mask,
+        decimation: a.decimation,
+    })?;
+    let bar = indicatif::ProgressBar::new((a.seconds * 1000.0) as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {elapsed:>4} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let mut frames = 0u64;
+    let mut last = String::new();
+    while start.elapsed().as_secs_f64() < a.seconds {
+        link.pump()?;
+        for t in link.telemetry() {
+            frames += 1;
+            let values: Vec<String> = chosen
+                .iter()
+                .zip(t.values.iter())
+                .map(|(s, v)| format!("{} {}", s.name(), sig(f64::from(*v), 4)))
+                .collect();
+            last = format!(
+                "{} {}{}",
+                Mode::from_code(t.mode).map_or("?", Mode::name),
+                values.join("  "),
+                if t.fault == 0 {
+                    String::new()
+                } else {
+                    format!("  fault {}", fault_name(t.fault))
+                }
+            );
+            bar.set_message(last.clone());
+        }
+        bar.set_position(start.elapsed().as_millis() as u64);
+    }
+    bar.finish_and_clear();
+    link.done(Command::Stream {
+        signals: 0,
+        decimation: 0,
+    })?;
+    writeln!(out, "{frames} telemetry frames; last: {last}")?;
+    Ok(())
+}
+
+/// What `capture` measured and wrote.
+#[derive(Clone, Debug)]
+pub struct CaptureOutcome {
+    /// The capture.
+    pub capture: Capture,
+    /// The simulator's metrics of the capture.
+    pub board: crate::Metrics,
+    /// The simulator's metrics of its prediction, on the same samples.
+    pub simulator: crate::Metrics,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Captures a move (the board must be armed) and compares it with the prediction.
+///
+/// # Errors
+/// A refusal, no reply, a capture that does not finish, files that cannot be written.
+pub fn capture<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    a: &CaptureArgs,
+    out: &mut dyn Write,
+) -> anyhow::Result<CaptureOutcome> {
+    let s = status(link)?;
+    if !s.mode.armed() {
+        bail!("the board is {}: arm it first", s.mode.name());
+    }
+    let params = read_params(link)?;
+    let rate = f64::from(params.actuator.board.rate_hz);
+    link.done(Command::Capture {
+        samples: a.samples,
+        decimation: a.decimation,
+        trigger: Trigger::Move,
+    })?;
+    link.done(Command::Move {
+        position_m: (a.position_mm * 1e-3) as f32,
+        time_s: a.time_s.map(|t| t as f32),
+    })?;
+    let span_s = f64::from(a.samples) * f64::from(a.decimation) / rate;
+    let deadline = Instant::now() + Duration::from_secs_f64(10.0 * span_s + 5.0);
+    let total = loop {
+        match status(link)?.capture {
+            CaptureState::Done(n) => break n,
+            _ if Instant::now() > deadline => bail!("the capture did not finish"),
+            _ => std::thread::sleep(Duration::from_millis(20)),
+        }
+    };
+    let mut chunks = Vec::new();
+    let mut offset = 0u16;
+    while offset < total {
+        let f = link.request(Command::ReadCapture { offset })?;
+        let mut scratch = Vec::new();
+        match f.message(&mut scratch)? {
+            Message::Reply {
+                reply: Reply::Capture(c),
+                ..
+            } => chunks.push(c),
+            Message::Reply {
+                reply: Reply::Refused(r),
+                ..
+            } => bail!("refused: {}", super::refusal(&r)),
+            other => bail!("unexpected reply: {other:?}"),
+        }
+        offset = offset.saturating_add(CHUNK_SAMPLES as u16);
+    }
+    let capture = Capture::from_chunks(&chunks).ok_or_else(|| anyhow!("empty capture"))?;
+    let (sc, run) = super::prediction(&params, &capture, a.noise)?;
+    let board = super::capture_metrics(&sc, &capture);
+    let simulator = super::prediction_metrics(&sc, &run, &capture);
+    let at_s = match sc.reference {
+        crate::scenario::Reference::Step { at_s, .. } => at_s,
+        _ => 0.0,
+    };
+    let predicted = super::prediction_samples(&run, &capture, at_s, rate);
+
+    report::create_dir(&a.out)?;
+    let csv = a.out.join("capture.csv");
+    let mut t = Table::new([
+        "t_s", "r_m", "x_m", "v_mps", "i_a", "u_v", "duty", "fault", "sim_x_m", "sim_i_a",
+        "sim_u_v",
+    ]);
+    for (k, s) in capture.samples.iter().enumerate() {
+        let p = predicted.get(k).copied().unwrap_or_default();
+        t.push([
+            format!("{}", capture.t_s(k, rate)),
+            s.r_m.to_string(),
+            s.x_m.to_string(),
+            s.v_mps.to_string(),
+            s.i_a.to_string(),
+            s.u_v.to_string(),
+            s.duty.to_string(),
+            s.fault.to_string(),
+            p.x_m.to_string(),
+            p.i_a.to_string(),
+            p.u_v.to_string(),
+        ]);
+    }
+    t.write_csv(&csv)?;
+    let metrics = report::metrics_table(&[("board", &board), ("simulator", &simulator)]);
+    let metrics_csv = a.out.join("metrics.csv");
+    metrics.write_csv(&metrics_csv)?;
+    let pts = |f: &dyn Fn(&ema::protocol::Sample) -> f64, v: &[ema::protocol::Sample]| {
+        v.iter()
+            .enumerate()
+            .map(|(k, s)| (capture.t_s(k, rate), f(s)))
+            .collect::<Vec<_>>()
+    };
+    let png = a.out.join("capture.png");
+    Figure::new(format!(
+        "step response {} -> {} mm: board and simulator",
+        sig(f64::from(capture.from_m) * 1e3, 4),
+        sig(f64::from(capture.to_m) * 1e3, 4)
+    ))
+    .panel(
+        Panel::new("time from the move [s]", "position [mm]")
+            .series(
+                Series::line(
+                    "x, board",
+                    pts(&|s| f64::from(s.x_m) * 1e3, &capture.samples),
+                )
+                .color(0),
+            )
+            .series(
+                Series::dashed("x, simulator", pts(&|s| f64::from(s.x_m) * 1e3, &predicted))
+                    .color(1),
+            )
+            .series(
+                Series::dashed(
+                    "reference",
+                    pts(&|s| f64::from(s.r_m) * 1e3, &capture.samples),
+                )
+                .color(7),
+            ),
+    )
+    .panel(
+        Panel::new("time from the move [s]", "coil current [A]")
+            .series(Series::line("i, board", pts(&|s| f64::from(s.i_a), &capture.samples)).color(0))
+            .series(
+                Series::dashed("i, simulator", pts(&|s| f64::from(s.i_a), &predicted)).color(1),
+            ),
+    )
+    .panel(
+        Panel::new("time from the move [s]", "coil voltage [V]")
+            .series(Series::line("u, board", pts(&|s| f64::from(s.u_v), &capture.samples)).color(0))
+            .series(
+                Series::dashed("u, simulator", pts(&|s| f64::from(s.u_v), &predicted)).color(1),
+            ),
+    )
+    .write_png(&png)?;
+    writeln!(
+        out,
+        "captured {} samples, one every {} ticks ({} s), move {} -> {} mm planned over {} s",
+        capture.samples.len(),
+        capture.decimation,
+        sig(span_s, 4),
+        sig(f64::from(capture.from_m) * 1e3, 4),
+        sig(f64::from(capture.to_m) * 1e3, 4),
+        sig(f64::from(capture.move_s), 4)
+    )?;
+    write!(out, "{}", metrics.transposed().to_text())?;
+    let files = vec![csv, metrics_csv, png];
+    writeln!(out, "\nwrote:")?;
+    for f in &files {
+        writeln!(out, "  {}", f.display())?;
+    }
+    Ok(CaptureOutcome {
+        capture,
+        board,
+        simulator,
+        files,
+    })
+}
+
+/// A line of the virtual board's standard input, as an injection.
+fn injection(line: &str) -> Option<Result<Injection, String>> {
+    let mut words = line.split_whitespace();
+    let verb = words.next()?;
+    let arg = words.next().map(str::parse::<f64>);
+    Some(match (verb, arg) {
+        ("supply", Some(Ok(v))) => Ok(Injection::Supply(v)),
+        ("position-open", None) => Ok(Injection::PositionOpen(true)),
+        ("position-ok", None) => Ok(Injection::PositionOpen(false)),
+        ("analog-v", Some(Ok(v))) => Ok(Injection::Analog {
+            value: v,
+            current: false,
+        }),
+        ("analog-ma", Some(Ok(v))) => Ok(Injection::Analog {
+            value: v * 1e-3,
+            current: true,
+        }),
+        ("cut-save", Some(Ok(v))) => Ok(Injection::CutSave(v as u64)),
+        _ => Err(format!(
+            "unknown: `{line}` (supply V, position-open, position-ok, analog-v V, analog-ma MA, cut-save STEP)"
+        )),
+    })
+}
+
+fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    let actuator = match &a.actuator {
+        Some(name) => crate::actuator::load(name)?.1,
+        None => Actuator::PRODUCT,
+    };
+    let mut board = VirtualBoard::new(Options {
+        actuator,
+        noise: a.noise,
+    })?;
+    let (mut master, slave) =
+        serialport::TTYPort::pair().context("cannot open a pseudo-terminal")?;
+    master.set_timeout(Duration::from_millis(1))?;
+    let path = slave
+        .name()
+        .ok_or_else(|| anyhow!("the pseudo-terminal has no name"))?;
+    if let Some(link) = &a.link {
+        let _ = std::fs::remove_file(link);
+        std::os::unix::fs::symlink(&path, link)
+            .with_context(|| format!("cannot link {}", link.display()))?;
+    }
+    writeln!(
+        out,
+        "virtual board on {path}: {} at {} Hz, {}; injections on standard input (supply V, position-open, position-ok, analog-v V, analog-ma MA, cut-save STEP)",
+        a.actuator.as_deref().unwrap_or("the product's actuator"),
+        board.scenario().rate_hz(),
+        if a.speed > 0.0 {
+            format!("{} x real time", a.speed)
+        } else {
+            "as fast as it can".into()
+        }
+    )?;
+    out.flush()?;
+    let (tx, rx) = mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in std::io::stdin().lock().lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let stop = AtomicBool::new(false);
+    let speed = (a.speed > 0.0).then_some(a.speed);
+    board.serve(&mut master, speed, &stop, |b| {
+        while let Ok(line) = rx.try_recv() {
+            match injection(&line) {
+                Some(Ok(i)) => {
+                    eprintln!("virtual board: {i:?}");
+                    b.inject(i);
+                }
+                Some(Err(e)) => eprintln!("virtual board: {e}"),
+                None => {}
+            }
+        }
+    })?;
+    drop(slave);
+    Ok(())
+}

@@ -1,0 +1,1320 @@
+//! The board's application, the same on the STM32F405 and on `hil-sim`'s virtual board:
+//! the operating states, the commands of the link, the parameters and their store,
+//! telemetry and captures. Everything target-specific (the timer, the ADC, the UART, the
+//! flash, the reset) stays in the firmware; `hil-sim` gives the same two halves a
+//! simulated plant, a pseudo-terminal and a simulated flash.
+//!
+//! **Where it runs today.** `hil-sim`'s virtual board runs it (the host tool is tested
+//! against that), and `tests/qemu_device.rs` runs a scripted session of it on the
+//! Cortex-M4F. The firmware binary does not yet: its interrupt still runs
+//! `Config::tick` through the guard on a built-in set point, and the serial link, the
+//! store over the chip's flash and the analog input's conversion are still to be wired
+//! in there.
+//!
+//! ## Two halves and three queues
+//!
+//! | half | runs in | owns |
+//! |---|---|---|
+//! | [`Controller`] | the control interrupt, every tick | the controller's configuration and state, the operating state, the set point, the capture buffer |
+//! | [`Dispatcher`] | the main loop | the link (frames in and out), the parameters, the store |
+//!
+//! They share nothing but three single-producer single-consumer queues from `heapless`
+//! ([`Queues`]): orders from the main loop to the interrupt ([`Ticket`], one at a time),
+//! answers back ([`Answer`]), and telemetry samples ([`Telemetered`]). The interrupt
+//! takes at most one order per tick and never waits; a full telemetry queue drops the
+//! sample and counts it. Every decision that needs the present measurement (arming,
+//! clearing) is taken by the interrupt, at the tick the order arrives; everything that
+//! takes time (validating and building a configuration, reading the store, encoding
+//! frames) is done by the main loop.
+//!
+//! ## Operating states
+//!
+//! ```text
+//!            arm (no fault, sensors plausible, bus in window, 4-20 mA loop closed)
+//! Disarmed ---------------------------> Armed <----> Moving   (a move in progress)
+//!    ^  <------------- disarm ------------|             |
+//!    |                                    +---- fault --+--> Fault (latched, coasting)
+//!    +------------ clear (disarmed, cause gone) ---------------------+
+//! ```
+//!
+//! * **Disarmed** (after every start): the bridge coasts, the sensors are read and
+//!   checked every tick; nothing is driven.
+//! * **Armed**: closed loop, holding the position measured when armed (with the link as
+//!   the set point's source) or following the analog set point.
+//! * **Moving**: armed, a move in progress (the reference shaping's).
+//! * **Fault**: a fault latched (by the tick, the guard, or the analog input's wire
+//!   check); the bridge coasts until the fault is cleared, which leaves the board
+//!   disarmed. Clearing is refused while the cause is still measured (a sensor
+//!   implausible, the bus outside its window, the bridge's break input active, the
+//!   4-20 mA loop open).
+//!
+//! ## Cost in the interrupt
+//!
+//! Disarmed, a tick converts and checks the codes and coasts the bridge. Armed, it is
+//! `Config::tick` through the guard, plus: one queue poll, the analog input when chosen,
+//! the operating state, and when due, one telemetry sample and one capture sample (a copy
+//! of eight values). `tests/qemu_device.rs` counts the instructions on the Cortex-M4F.
+
+use embedded_hal::digital::OutputPin;
+use embedded_hal::pwm::SetDutyCycle;
+use heapless::spsc::{Consumer, Producer, Queue};
+
+use crate::analog::{self, Source as SetpointSource};
+use crate::bridge::{HBridge, Mode as BridgeMode};
+use crate::control::{self, Status as TickStatus};
+use crate::guard::{self, End, Start};
+use crate::math;
+use crate::params::{Board, Params, Refused};
+use crate::protocol::{
+    self, CaptureState, Chunk, Command, FrameError, Framer, Invalid, LoadError, Message, Mode,
+    Refusal, Reply, Request, Sample, Signal, Source, Started, Status, StoreError, Telemetry,
+    Trigger, MAX_FRAME,
+};
+use crate::sense::{Frame, Measurement};
+use crate::store::Store;
+use crate::supervisor::{Fault, FAULT_COUNT};
+
+/// Samples the firmware's capture buffer holds (at 20 kHz with a decimation of 20: 0.256 s).
+pub const CAPTURE_CAPACITY: usize = 256;
+/// Slots of the order queue (one order in flight, plus the queue's empty slot).
+pub const ORDER_SLOTS: usize = 2;
+/// Slots of the answer queue.
+pub const ANSWER_SLOTS: usize = 2;
+/// Slots of the telemetry queue.
+pub const SAMPLE_SLOTS: usize = 16;
+/// Bytes the dispatcher buffers for the link.
+pub const TX_CAPACITY: usize = 1024;
+/// Longest move a [`Command::Move`] may ask for \[s\].
+pub const MAX_MOVE_S: f32 = 10.0;
+
+/// A new configuration for the interrupt, built and validated by the main loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Install {
+    /// The controller.
+    pub control: control::Config,
+    /// The analog input.
+    pub analog: analog::Config,
+}
+
+/// What the main loop asks of the interrupt.
+// An install carries a whole configuration; there is no heap to box it, and the queue
+// holds one order at a time.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Order {
+    /// Arm (see [`Command::Arm`]).
+    Arm,
+    /// Disarm.
+    Disarm,
+    /// Move to `x_m` in at least `time_s` (0: as fast as the limits allow).
+    Move {
+        /// Target \[m\], within the stroke (checked by the main loop).
+        x_m: f32,
+        /// Duration \[s\].
+        time_s: f32,
+    },
+    /// Clear a latched fault whose cause is gone.
+    Clear,
+    /// One telemetry sample every `decimation` ticks (0: none).
+    Stream {
+        /// Ticks per sample.
+        decimation: u16,
+    },
+    /// Start a capture.
+    Capture {
+        /// Samples (at most the buffer's length).
+        samples: u16,
+        /// Ticks per sample, at least 1.
+        decimation: u16,
+        /// When.
+        trigger: Trigger,
+    },
+    /// A chunk of the finished capture from `offset`.
+    ReadCapture {
+        /// First sample.
+        offset: u16,
+    },
+    /// The state.
+    Status,
+    /// Done when disarmed (and then the board stays disarmed until the main loop itself
+    /// orders otherwise); refused when armed.
+    Disarmed,
+    /// Use a new configuration (disarmed only).
+    Install(Install),
+}
+
+/// An order and its number.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ticket {
+    /// Echoed by the answer.
+    pub id: u8,
+    /// The order.
+    pub order: Order,
+}
+
+/// The interrupt's answer to an order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Answer {
+    /// The order's number.
+    pub id: u8,
+    /// What it gave.
+    pub outcome: Outcome,
+}
+
+/// What an order gave.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    /// Done, or refused and why.
+    Done(Result<(), Refusal<'static>>),
+    /// The state (the main loop adds its own part).
+    Status(Status<'static>),
+    /// Part of the capture.
+    Chunk(Chunk),
+}
+
+/// One telemetry sample and its tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Telemetered {
+    /// Tick.
+    pub tick: u32,
+    /// The sample.
+    pub sample: Sample,
+}
+
+/// The three queues between the halves.
+pub struct Queues {
+    orders: Queue<Ticket, ORDER_SLOTS>,
+    answers: Queue<Answer, ANSWER_SLOTS>,
+    samples: Queue<Telemetered, SAMPLE_SLOTS>,
+}
+
+impl Default for Queues {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Queues {
+    /// Empty.
+    #[must_use]
+    pub const fn new() -> Self {
+        Self {
+            orders: Queue::new(),
+            answers: Queue::new(),
+            samples: Queue::new(),
+        }
+    }
+
+    /// The main loop's ends and the interrupt's ends.
+    pub fn split(&mut self) -> (MainEnds<'_>, IsrEnds<'_>) {
+        let (op, oc) = self.orders.split();
+        let (ap, ac) = self.answers.split();
+        let (sp, sc) = self.samples.split();
+        (
+            MainEnds {
+                orders: op,
+                answers: ac,
+                samples: sc,
+            },
+            IsrEnds {
+                orders: oc,
+                answers: ap,
+                samples: sp,
+            },
+        )
+    }
+}
+
+/// The main loop's ends of the queues.
+pub struct MainEnds<'q> {
+    /// Orders out.
+    pub orders: Producer<'q, Ticket>,
+    /// Answers in.
+    pub answers: Consumer<'q, Answer>,
+    /// Telemetry in.
+    pub samples: Consumer<'q, Telemetered>,
+}
+
+/// The interrupt's ends of the queues.
+pub struct IsrEnds<'q> {
+    /// Orders in.
+    pub orders: Consumer<'q, Ticket>,
+    /// Answers out.
+    pub answers: Producer<'q, Answer>,
+    /// Telemetry out.
+    pub samples: Producer<'q, Telemetered>,
+}
+
+/// What the interrupt knows at a tick's start.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Inputs {
+    /// The control's three conversions.
+    pub frame: Frame,
+    /// The analog set-point input's conversion.
+    pub analog: u16,
+    /// Time and the break flag, for the guard.
+    pub start: Start,
+    /// The bridge's break input is active now (its cause is still there).
+    pub break_active: bool,
+}
+
+/// What a tick did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Ticked {
+    /// The tick's status.
+    pub status: TickStatus,
+    /// It ran on time: feed the watchdog.
+    pub feed: bool,
+    /// A `hardware_trip` was cleared: re-enable the bridge's outputs (the firmware sets
+    /// the timer's main output again).
+    pub restore_outputs: bool,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Meta {
+    armed_ticks: u32,
+    from_m: f32,
+    to_m: f32,
+    move_s: f32,
+}
+
+/// Cycle statistics of the ticks (the firmware measures them; zero elsewhere).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Cycles {
+    sum: u32,
+    count: u32,
+    window: u32,
+    mean: u32,
+    max: u32,
+}
+
+/// The interrupt's half. `C` is the capture buffer (`&'static mut [Sample; N]` in the
+/// firmware, a `Vec` in `hil-sim`).
+pub struct Controller<C> {
+    cfg: control::Config,
+    analog: analog::Config,
+    state: control::State,
+    analog_state: analog::State,
+    guard: guard::Config,
+    guarded: guard::State,
+    mode: Mode,
+    setpoint_m: f32,
+    ticks: u32,
+    armed_ticks: u32,
+    /// The last tick's reading and its verdict (what arming or clearing would meet).
+    measurement: Measurement,
+    verdict: Option<Fault>,
+    analog_m: f32,
+    analog_fault: Option<Fault>,
+    break_active: bool,
+    stream: u16,
+    stream_count: u16,
+    dropped: u32,
+    capture: C,
+    capture_state: CaptureState,
+    capture_target: u16,
+    capture_decimation: u16,
+    capture_count: u16,
+    capture_trigger: Trigger,
+    meta: Meta,
+    cycles: Cycles,
+}
+
+impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
+    /// Disarmed, with `install`, the guard for ticks `period` counts apart, and
+    /// `capture` as the capture buffer.
+    #[must_use]
+    pub fn new(install: Install, period: u32, capture: C) -> Self {
+        Self {
+            cfg: install.control,
+            analog: install.analog,
+            state: install.control.initial_state(),
+            analog_state: analog::State::default(),
+            guard: guard::Config::for_period(period),
+            guarded: guard::State::default(),
+            mode: Mode::Disarmed,
+            setpoint_m: 0.0,
+            ticks: 0,
+            armed_ticks: 0,
+            measurement: Measurement::default(),
+            verdict: None,
+            analog_m: 0.0,
+            analog_fault: None,
+            break_active: false,
+            stream: 0,
+            stream_count: 0,
+            dropped: 0,
+            capture,
+            capture_state: CaptureState::Idle,
+            capture_target: 0,
+            capture_decimation: 1,
+            capture_count: 0,
+            capture_trigger: Trigger::Now,
+            meta: Meta::default(),
+            cycles: Cycles {
+                window: 20_000,
+                ..Cycles::default()
+            },
+        }
+    }
+
+    /// The operating state.
+    #[must_use]
+    pub const fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// The controller's configuration.
+    #[must_use]
+    pub const fn config(&self) -> &control::Config {
+        &self.cfg
+    }
+
+    /// The controller's state.
+    #[must_use]
+    pub const fn state(&self) -> &control::State {
+        &self.state
+    }
+
+    /// The guard's state (overruns).
+    #[must_use]
+    pub const fn guarded(&self) -> &guard::State {
+        &self.guarded
+    }
+
+    /// The set point \[m\].
+    #[must_use]
+    pub const fn setpoint_m(&self) -> f32 {
+        self.setpoint_m
+    }
+
+    /// Latches `fault` (one found outside a tick, for example at start) and coasts.
+    pub fn trip<P: SetDutyCycle, O: OutputPin>(
+        &mut self,
+        bridge: &mut HBridge<P, O>,
+        fault: Fault,
+    ) {
+        self.cfg.trip(&mut self.state, bridge, fault);
+        self.mode = Mode::Fault;
+    }
+
+    /// Adds one tick's measured cycles; the mean is over windows of `window` ticks.
+    pub fn record_cycles(&mut self, cycles: u32, window: u32) {
+        let c = &mut self.cycles;
+        c.window = window;
+        c.sum = c.sum.saturating_add(cycles);
+        c.count = c.count.saturating_add(1);
+        if cycles > c.max {
+            c.max = cycles;
+        }
+        if c.count >= c.window {
+            c.mean = c.sum.checked_div(c.count).unwrap_or(0);
+            c.sum = 0;
+            c.count = 0;
+        }
+    }
+
+    /// One tick: takes at most one order, reads the analog input, runs the controller
+    /// (armed) or checks the sensors with the bridge coasting (disarmed, fault) through
+    /// the guard, and records telemetry and capture samples when due. Infallible and
+    /// panic-free.
+    #[inline]
+    pub fn tick<P: SetDutyCycle, O: OutputPin>(
+        &mut self,
+        bridge: &mut HBridge<P, O>,
+        inputs: &Inputs,
+        ends: &mut IsrEnds<'_>,
+        end: impl FnOnce() -> End,
+    ) -> Ticked {
+        self.ticks = self.ticks.wrapping_add(1);
+        self.break_active = inputs.break_active;
+        let mut restore_outputs = false;
+        if let Some(ticket) = ends.orders.dequeue() {
+            let outcome = self.apply(ticket.order, bridge, &mut restore_outputs);
+            // The main loop has at most one order in flight: the answer fits.
+            let _ = ends.answers.enqueue(Answer {
+                id: ticket.id,
+                outcome,
+            });
+        }
+
+        if self.analog.source() != SetpointSource::Link {
+            let r = self.analog.step(&mut self.analog_state, inputs.analog);
+            self.analog_m = r.filtered_m;
+            self.analog_fault = if self.analog.source() == SetpointSource::Current {
+                r.fault
+            } else {
+                None
+            };
+            if self.mode.armed() {
+                if let Some(f) = self.analog_fault {
+                    self.cfg.trip(&mut self.state, bridge, f);
+                } else if r.setpoint_m != self.setpoint_m {
+                    self.start_capture_on_move(r.setpoint_m, 0.0);
+                    self.setpoint_m = r.setpoint_m;
+                }
+            }
+        }
+
+        let cfg = &self.cfg;
+        let armed = self.mode.armed();
+        let setpoint = self.setpoint_m;
+        let frame = inputs.frame;
+        let mut verdict = None;
+        let outcome = self.guard.run(
+            &mut self.guarded,
+            cfg,
+            &mut self.state,
+            bridge,
+            inputs.start,
+            |st, b| {
+                if armed {
+                    cfg.tick(st, b, &frame, setpoint)
+                } else {
+                    let m = cfg.sense().convert(&frame);
+                    verdict = match m {
+                        Ok(m) => cfg.limits().check(&m),
+                        Err(f) => Some(f),
+                    };
+                    let mut status = TickStatus {
+                        fault: st.supervisor.latched(),
+                        measurement: m.unwrap_or_default(),
+                        ..TickStatus::default()
+                    };
+                    if b.coast().is_err() {
+                        status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
+                    }
+                    status
+                }
+            },
+            end,
+        );
+        let status = outcome.status;
+        self.measurement = status.measurement;
+        if !armed {
+            self.verdict = verdict;
+        }
+        if self.state.supervisor.latched().is_some() {
+            self.mode = Mode::Fault;
+        } else if self.mode.armed() {
+            self.armed_ticks = self.armed_ticks.saturating_add(1);
+            self.mode = if self.state.trajectory.moving() {
+                Mode::Moving
+            } else {
+                Mode::Armed
+            };
+        }
+
+        let streaming = self.stream != 0;
+        let capturing = matches!(self.capture_state, CaptureState::Running(_));
+        if streaming || capturing {
+            let sample = self.sample(&status, bridge.max_duty());
+            if streaming {
+                self.stream_count = self.stream_count.saturating_add(1);
+                if self.stream_count >= self.stream {
+                    self.stream_count = 0;
+                    let t = Telemetered {
+                        tick: self.ticks,
+                        sample,
+                    };
+                    if ends.samples.enqueue(t).is_err() {
+                        self.dropped = self.dropped.saturating_add(1);
+                    }
+                }
+            }
+            if let CaptureState::Running(n) = self.capture_state {
+                self.record(n, sample);
+            }
+        }
+        Ticked {
+            status,
+            feed: outcome.feed,
+            restore_outputs,
+        }
+    }
+
+    fn record(&mut self, n: u16, sample: Sample) {
+        if self.capture_count == 0 {
+            if let Some(slot) = self.capture.as_mut().get_mut(usize::from(n)) {
+                *slot = sample;
+            }
+            let n = n.saturating_add(1);
+            self.capture_state = if n >= self.capture_target {
+                CaptureState::Done(n)
+            } else {
+                CaptureState::Running(n)
+            };
+        }
+        self.capture_count = self.capture_count.saturating_add(1);
+        if self.capture_count >= self.capture_decimation {
+            self.capture_count = 0;
+        }
+    }
+
+    fn sample(&self, status: &TickStatus, max_duty: u16) -> Sample {
+        let fraction = f32::from(status.drive.duty) / f32::from(max_duty.max(1));
+        Sample {
+            r_m: status.reference.x_m,
+            x_m: status.measurement.x_m,
+            v_mps: status.estimate.v_mps,
+            i_a: status.measurement.i_a,
+            u_v: status.drive.u_v,
+            duty: if status.drive.mode == BridgeMode::Reverse {
+                -fraction
+            } else {
+                fraction
+            },
+            vbus_v: status.measurement.vbus_v,
+            analog_m: self.analog_m,
+            fault: status.fault.map_or(0, Fault::code),
+            mode: self.mode.code(),
+        }
+    }
+
+    /// What arming would meet now: a sensor, the bus, the analog loop.
+    fn not_ready(&self) -> Option<Fault> {
+        self.verdict.or(self.analog_fault)
+    }
+
+    fn start_capture_on_move(&mut self, to_m: f32, move_s: f32) {
+        if self.capture_state == CaptureState::Waiting && self.capture_trigger == Trigger::Move {
+            self.meta = Meta {
+                armed_ticks: self.armed_ticks,
+                from_m: self.setpoint_m,
+                to_m,
+                move_s,
+            };
+            self.capture_count = 0;
+            self.capture_state = CaptureState::Running(0);
+        }
+    }
+
+    fn apply<P: SetDutyCycle, O: OutputPin>(
+        &mut self,
+        order: Order,
+        bridge: &mut HBridge<P, O>,
+        restore_outputs: &mut bool,
+    ) -> Outcome {
+        let done = |r: Result<(), Refusal<'static>>| Outcome::Done(r);
+        match order {
+            Order::Arm => {
+                if self.mode.armed() {
+                    return done(Ok(()));
+                }
+                if let Some(f) = self.state.supervisor.latched() {
+                    return done(Err(Refusal::Faulted { fault: f.code() }));
+                }
+                if let Some(f) = self.not_ready() {
+                    return done(Err(Refusal::NotReady { fault: f.code() }));
+                }
+                self.cfg.rearm(&mut self.state);
+                let stroke = self.cfg.limits().position_max_m / 1.1;
+                self.setpoint_m = math::clamp(self.measurement.x_m, 0.0, stroke);
+                if self.analog.source() != SetpointSource::Link {
+                    self.setpoint_m = self.analog_state_setpoint();
+                }
+                self.armed_ticks = 0;
+                self.mode = Mode::Armed;
+                done(Ok(()))
+            }
+            Order::Disarm => {
+                if self.mode.armed() {
+                    let _ = bridge.coast();
+                    self.mode = Mode::Disarmed;
+                }
+                done(Ok(()))
+            }
+            Order::Move { x_m, time_s } => {
+                if !self.mode.armed() {
+                    return done(Err(Refusal::NotArmed));
+                }
+                if self.analog.source() != SetpointSource::Link {
+                    return done(Err(Refusal::AnalogSetpoint));
+                }
+                // Planned here rather than by the next tick, with the tick's own planner
+                // and, without a duration, the same arithmetic: the same bits either way.
+                let mut move_s = 0.0;
+                if let Some(shaping) = self.cfg.shaping() {
+                    if x_m != self.state.trajectory.target_m || time_s > 0.0 {
+                        shaping.retarget(
+                            &mut self.state.trajectory,
+                            self.measurement.x_m,
+                            x_m,
+                            time_s,
+                        );
+                        move_s = self.state.trajectory.duration_s();
+                    }
+                }
+                self.start_capture_on_move(x_m, move_s);
+                self.setpoint_m = x_m;
+                done(Ok(()))
+            }
+            Order::Clear => {
+                if self.mode.armed() {
+                    return done(Err(Refusal::Armed));
+                }
+                let Some(latched) = self.state.supervisor.latched() else {
+                    return done(Ok(()));
+                };
+                let cause = if latched == Fault::HardwareTrip && self.break_active {
+                    Some(Fault::HardwareTrip)
+                } else {
+                    self.not_ready()
+                };
+                if let Some(f) = cause {
+                    return done(Err(Refusal::CauseActive { fault: f.code() }));
+                }
+                self.cfg.rearm(&mut self.state);
+                *restore_outputs = latched == Fault::HardwareTrip;
+                self.mode = Mode::Disarmed;
+                done(Ok(()))
+            }
+            Order::Stream { decimation } => {
+                self.stream = decimation;
+                self.stream_count = 0;
+                done(Ok(()))
+            }
+            Order::Capture {
+                samples,
+                decimation,
+                trigger,
+            } => {
+                let fits = usize::from(samples) <= self.capture.as_ref().len();
+                if samples == 0 || decimation == 0 || !fits {
+                    return done(Err(Refusal::NoCapture));
+                }
+                self.capture_target = samples;
+                self.capture_decimation = decimation;
+                self.capture_count = 0;
+                self.capture_trigger = trigger;
+                self.meta = Meta {
+                    armed_ticks: self.armed_ticks,
+                    from_m: self.setpoint_m,
+                    to_m: self.setpoint_m,
+                    move_s: 0.0,
+                };
+                self.capture_state = match trigger {
+                    Trigger::Now => CaptureState::Running(0),
+                    Trigger::Move => CaptureState::Waiting,
+                };
+                done(Ok(()))
+            }
+            Order::ReadCapture { offset } => {
+                let CaptureState::Done(total) = self.capture_state else {
+                    return done(Err(Refusal::NoCapture));
+                };
+                let mut samples = heapless::Vec::new();
+                let from = usize::from(offset);
+                let to = usize::from(total).min(from.saturating_add(protocol::CHUNK_SAMPLES));
+                for s in self.capture.as_ref().get(from..to).unwrap_or(&[]) {
+                    let _ = samples.push(*s);
+                }
+                Outcome::Chunk(Chunk {
+                    offset,
+                    total,
+                    decimation: self.capture_decimation,
+                    armed_ticks: self.meta.armed_ticks,
+                    from_m: self.meta.from_m,
+                    to_m: self.meta.to_m,
+                    move_s: self.meta.move_s,
+                    samples,
+                })
+            }
+            Order::Status => Outcome::Status(self.snapshot()),
+            Order::Disarmed => done(if self.mode.armed() {
+                Err(Refusal::Armed)
+            } else {
+                Ok(())
+            }),
+            Order::Install(install) => {
+                if self.mode.armed() {
+                    return done(Err(Refusal::Armed));
+                }
+                let supervisor = self.state.supervisor;
+                self.cfg = install.control;
+                self.analog = install.analog;
+                self.state = self.cfg.initial_state();
+                self.state.supervisor = supervisor;
+                self.analog_state = analog::State::default();
+                done(Ok(()))
+            }
+        }
+    }
+
+    fn analog_state_setpoint(&self) -> f32 {
+        let stroke = self.cfg.limits().position_max_m / 1.1;
+        math::clamp(self.analog_m, 0.0, stroke)
+    }
+
+    fn snapshot(&self) -> Status<'static> {
+        let mut counts = [0u16; FAULT_COUNT];
+        for (c, f) in counts.iter_mut().zip(Fault::ALL) {
+            *c = self.state.supervisor.count(f);
+        }
+        Status {
+            mode: self.mode,
+            fault: self.state.supervisor.latched().map(Fault::code),
+            not_ready: self.not_ready().map(Fault::code),
+            fault_counts: counts,
+            x_m: self.measurement.x_m,
+            i_a: self.measurement.i_a,
+            vbus_v: self.measurement.vbus_v,
+            setpoint_m: self.setpoint_m,
+            analog_m: self.analog_m,
+            ticks: self.ticks,
+            isr_cycles_mean: self.cycles.mean,
+            isr_cycles_max: self.cycles.max,
+            overruns: self.guarded.overruns(),
+            telemetry_dropped: self.dropped,
+            capture: self.capture_state,
+            capture_capacity: u16::try_from(self.capture.as_ref().len()).unwrap_or(u16::MAX),
+            ..Status::default()
+        }
+    }
+}
+
+/// Reads the stored parameters (the main loop's view of the store).
+pub trait Storage {
+    /// The stored set, decoded.
+    ///
+    /// # Errors
+    /// Why there is none to use.
+    fn load(&mut self) -> Result<Params, LoadError<'static>>;
+}
+
+impl<F: embedded_storage::nor_flash::NorFlash> Storage for Store<F> {
+    fn load(&mut self) -> Result<Params, LoadError<'static>> {
+        Store::load(self)
+    }
+}
+
+/// What the platform does after the dispatcher has answered (the answer is in the
+/// transmit buffer: send it first).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Action {
+    /// Store these parameters, with the control stopped, and start again
+    /// ([`boot`] with the set to save).
+    Save(Params),
+    /// Start again.
+    Restart,
+}
+
+/// How the parameters in use were found at start, and the configuration they build.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Boot {
+    /// The parameters in use.
+    pub params: Params,
+    /// Where they came from.
+    pub source: Source<'static>,
+    /// The outcome of the save this start made, if one was requested.
+    pub saved: Option<Result<(), StoreError>>,
+    /// The configuration they build.
+    pub install: Install,
+}
+
+/// Starts the application's parameters: stores `save` first when a save was requested
+/// before this start, then loads the stored set; a set that is missing, of another
+/// format, damaged or invalid on this board gives way to `defaults`, and the source
+/// says why.
+///
+/// # Errors
+/// The defaults themselves do not build (a firmware built for an actuator it refuses).
+pub fn boot<F: embedded_storage::nor_flash::NorFlash>(
+    store: &mut Store<F>,
+    defaults: &Params,
+    board: &Board,
+    save: Option<&Params>,
+) -> Result<Boot, crate::config::Error> {
+    let saved = save.map(|p| store.save(p));
+    let stored = store.load().and_then(|p| match p.build(board) {
+        Ok((control, analog)) => Ok((p, Install { control, analog })),
+        Err(e) => Err(LoadError::Invalid(Invalid::from(e))),
+    });
+    match stored {
+        Ok((params, install)) => Ok(Boot {
+            params,
+            source: Source::Stored,
+            saved,
+            install,
+        }),
+        Err(why) => {
+            let (control, analog) = defaults.build(board)?;
+            Ok(Boot {
+                params: *defaults,
+                source: match why {
+                    LoadError::Empty => Source::Defaults,
+                    other => Source::Fallback(other),
+                },
+                saved,
+                install: Install { control, analog },
+            })
+        }
+    }
+}
+
+/// What the dispatcher does once the interrupt answers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Then {
+    /// Answer with the outcome.
+    Reply,
+    /// On success, use these parameters.
+    Commit {
+        params: Params,
+        source: Source<'static>,
+        unsaved: bool,
+    },
+    /// On success, answer and hand the platform this action.
+    Act(Action),
+    /// On success, stream these signals.
+    Signals(u16),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pending {
+    seq: u16,
+    id: u8,
+    then: Then,
+}
+
+/// The main loop's half: frames in, frames out, parameters.
+pub struct Dispatcher {
+    board: Board,
+    defaults: Params,
+    params: Params,
+    source: Source<'static>,
+    unsaved: bool,
+    capacity: u16,
+    framer: Framer,
+    tx: heapless::Vec<u8, TX_CAPACITY>,
+    pending: Option<Pending>,
+    next_id: u8,
+    signals: u16,
+    rejected: u32,
+    dropped: u32,
+    action: Option<Action>,
+}
+
+/// Counts of what the dispatcher refused and dropped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Frames refused ([`Message::Rejected`]).
+    pub rejected: u32,
+    /// Telemetry frames not sent for lack of room.
+    pub dropped: u32,
+}
+
+impl Dispatcher {
+    /// After a start: `boot` says what the parameters are; the [`Message::Started`]
+    /// announcement is the first frame out.
+    #[must_use]
+    pub fn new(board: Board, defaults: Params, boot: &Boot, capacity: u16) -> Self {
+        let mut d = Self {
+            board,
+            defaults,
+            params: boot.params,
+            source: boot.source,
+            unsaved: false,
+            capacity,
+            framer: Framer::new(),
+            tx: heapless::Vec::new(),
+            pending: None,
+            next_id: 0,
+            signals: 0,
+            rejected: 0,
+            dropped: 0,
+            action: None,
+        };
+        d.send(&Message::Started(Started {
+            params: boot.source,
+            saved: boot.saved,
+            capture_capacity: capacity,
+            rate_hz: board.rate_hz,
+        }));
+        d
+    }
+
+    /// The parameters in use.
+    #[must_use]
+    pub const fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// What was refused and dropped so far.
+    #[must_use]
+    pub const fn counts(&self) -> Counts {
+        Counts {
+            rejected: self.rejected,
+            dropped: self.dropped,
+        }
+    }
+
+    /// An order is waiting for the interrupt's answer (no byte is taken meanwhile).
+    #[must_use]
+    pub const fn busy(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// Bytes waiting to be sent.
+    #[must_use]
+    pub fn tx(&self) -> &[u8] {
+        &self.tx
+    }
+
+    /// The first `n` bytes of [`Dispatcher::tx`] were sent.
+    pub fn sent(&mut self, n: usize) {
+        let n = n.min(self.tx.len());
+        let rest = self.tx.len().saturating_sub(n);
+        self.tx.copy_within(n.., 0);
+        self.tx.truncate(rest);
+    }
+
+    /// The action to carry out once the transmit buffer is empty.
+    pub fn take_action(&mut self) -> Option<Action> {
+        if self.tx.is_empty() {
+            self.action.take()
+        } else {
+            None
+        }
+    }
+
+    /// Takes received bytes until a request needs the interrupt; returns how many were
+    /// taken (give the rest again after [`Dispatcher::poll`] has seen the answer).
+    pub fn receive(
+        &mut self,
+        bytes: &[u8],
+        ends: &mut MainEnds<'_>,
+        storage: &mut dyn Storage,
+    ) -> usize {
+        let mut taken = 0usize;
+        for &b in bytes {
+            if self.pending.is_some() || self.action.is_some() {
+                break;
+            }
+            taken = taken.saturating_add(1);
+            let mut frame = [0u8; MAX_FRAME];
+            let len = match self.framer.push(b) {
+                None => continue,
+                Some(Err(e)) => {
+                    self.reject(e);
+                    continue;
+                }
+                Some(Ok(raw)) => {
+                    let n = raw.len().min(MAX_FRAME);
+                    if let (Some(dst), Some(src)) = (frame.get_mut(..n), raw.get(..n)) {
+                        dst.copy_from_slice(src);
+                    }
+                    n
+                }
+            };
+            self.framer.clear();
+            let Some(raw) = frame.get_mut(..len) else {
+                continue;
+            };
+            match protocol::decode::<Request>(raw) {
+                Ok(r) => self.handle(r.seq, r.command, ends, storage),
+                Err(e) => self.reject(e),
+            }
+        }
+        taken
+    }
+
+    /// Completes a request the interrupt has answered, and turns telemetry samples into
+    /// frames (dropping them when the link is behind).
+    pub fn poll(&mut self, ends: &mut MainEnds<'_>) {
+        if let Some(p) = self.pending {
+            if let Some(answer) = ends.answers.dequeue() {
+                if answer.id == p.id {
+                    self.pending = None;
+                    self.complete(p, answer.outcome);
+                }
+            }
+        }
+        while let Some(t) = ends.samples.dequeue() {
+            if self.signals == 0 {
+                continue;
+            }
+            if TX_CAPACITY.saturating_sub(self.tx.len()) < 2 * MAX_FRAME {
+                self.dropped = self.dropped.saturating_add(1);
+                continue;
+            }
+            let mut values = heapless::Vec::new();
+            for s in Signal::ALL {
+                if self.signals & s.bit() != 0 {
+                    let _ = values.push(s.of(&t.sample));
+                }
+            }
+            self.send(&Message::Telemetry(Telemetry {
+                tick: t.tick,
+                mode: t.sample.mode,
+                fault: t.sample.fault,
+                values,
+            }));
+        }
+    }
+
+    fn reject(&mut self, e: FrameError) {
+        self.rejected = self.rejected.saturating_add(1);
+        self.send(&Message::Rejected(e));
+    }
+
+    fn send(&mut self, m: &Message<'_>) {
+        let mut frame = [0u8; MAX_FRAME];
+        if let Ok(n) = protocol::encode(m, &mut frame) {
+            if let Some(bytes) = frame.get(..n) {
+                // Replies are sent before telemetry fills the buffer (poll keeps two
+                // frames free); a full buffer only ever drops telemetry.
+                let _ = self.tx.extend_from_slice(bytes);
+            }
+        }
+    }
+
+    fn reply(&mut self, seq: u16, reply: Reply<'_>) {
+        self.send(&Message::Reply { seq, reply });
+    }
+
+    fn order(&mut self, seq: u16, order: Order, then: Then, ends: &mut MainEnds<'_>) {
+        let id = self.next_id;
+        self.next_id = self.next_id.wrapping_add(1);
+        // Nothing else is in flight (receive stops while a request is pending), so the
+        // queue has room.
+        let _ = ends.orders.enqueue(Ticket { id, order });
+        self.pending = Some(Pending { seq, id, then });
+    }
+
+    fn invalid(param: &'static str, value: f32, reason: crate::config::Reason) -> Refusal<'static> {
+        Refusal::Invalid(Invalid::from(crate::config::Error {
+            param,
+            value,
+            reason,
+        }))
+    }
+
+    fn handle(
+        &mut self,
+        seq: u16,
+        command: Command<'_>,
+        ends: &mut MainEnds<'_>,
+        storage: &mut dyn Storage,
+    ) {
+        use crate::config::Reason;
+        let then = Then::Reply;
+        match command {
+            Command::Status => self.order(seq, Order::Status, then, ends),
+            Command::Arm => self.order(seq, Order::Arm, then, ends),
+            Command::Disarm => self.order(seq, Order::Disarm, then, ends),
+            Command::Clear => self.order(seq, Order::Clear, then, ends),
+            Command::Move { position_m, time_s } => {
+                let stroke = self.params.actuator.mechanics.stroke_m;
+                let refusal = if let Err(e) =
+                    crate::config::within("move.position_m", position_m, 0.0, stroke)
+                {
+                    Some(Refusal::Invalid(Invalid::from(e)))
+                } else if let Some(Err(e)) =
+                    time_s.map(|t| crate::config::within("move.time_s", t, 0.0, MAX_MOVE_S))
+                {
+                    Some(Refusal::Invalid(Invalid::from(e)))
+                } else if self.params.setpoint.source != SetpointSource::Link {
+                    Some(Refusal::AnalogSetpoint)
+                } else {
+                    None
+                };
+                match refusal {
+                    Some(r) => self.reply(seq, Reply::Refused(r)),
+                    None => self.order(
+                        seq,
+                        Order::Move {
+                            x_m: position_m,
+                            time_s: time_s.unwrap_or(0.0),
+                        },
+                        then,
+                        ends,
+                    ),
+                }
+            }
+            Command::Get { name } => match self.params.get(name) {
+                Ok(v) => self.reply(seq, Reply::Value(v)),
+                Err(e) => self.reply(seq, Reply::Refused(refused(name, e))),
+            },
+            Command::Set { name, value } => {
+                let mut candidate = self.params;
+                if let Err(e) = candidate.set(name, value) {
+                    self.reply(seq, Reply::Refused(refused(name, e)));
+                    return;
+                }
+                match candidate.build(&self.board) {
+                    Err(e) => self.reply(seq, Reply::Refused(Refusal::Invalid(e.into()))),
+                    Ok((control, analog)) => self.order(
+                        seq,
+                        Order::Install(Install { control, analog }),
+                        Then::Commit {
+                            params: candidate,
+                            source: self.source,
+                            unsaved: true,
+                        },
+                        ends,
+                    ),
+                }
+            }
+            Command::Load => match storage.load() {
+                Err(e) => self.reply(seq, Reply::Refused(Refusal::Load(e))),
+                Ok(p) => match p.build(&self.board) {
+                    Err(e) => self.reply(
+                        seq,
+                        Reply::Refused(Refusal::Load(LoadError::Invalid(e.into()))),
+                    ),
+                    Ok((control, analog)) => self.order(
+                        seq,
+                        Order::Install(Install { control, analog }),
+                        Then::Commit {
+                            params: p,
+                            source: Source::Stored,
+                            unsaved: false,
+                        },
+                        ends,
+                    ),
+                },
+            },
+            Command::Defaults => match self.defaults.build(&self.board) {
+                Err(e) => self.reply(seq, Reply::Refused(Refusal::Invalid(e.into()))),
+                Ok((control, analog)) => self.order(
+                    seq,
+                    Order::Install(Install { control, analog }),
+                    Then::Commit {
+                        params: self.defaults,
+                        source: Source::Defaults,
+                        unsaved: true,
+                    },
+                    ends,
+                ),
+            },
+            Command::Save => self.order(
+                seq,
+                Order::Disarmed,
+                Then::Act(Action::Save(self.params)),
+                ends,
+            ),
+            Command::Restart => {
+                self.order(seq, Order::Disarmed, Then::Act(Action::Restart), ends);
+            }
+            Command::Stream {
+                signals,
+                decimation,
+            } => {
+                let all = (1u16 << Signal::ALL.len()).wrapping_sub(1);
+                if signals & !all != 0 || (decimation != 0 && signals == 0) {
+                    let r = Self::invalid(
+                        "stream.signals",
+                        f32::from(signals),
+                        Reason::AboveMax {
+                            max: f32::from(all),
+                        },
+                    );
+                    self.reply(seq, Reply::Refused(r));
+                } else {
+                    self.order(
+                        seq,
+                        Order::Stream { decimation },
+                        Then::Signals(signals),
+                        ends,
+                    );
+                }
+            }
+            Command::Capture {
+                samples,
+                decimation,
+                trigger,
+            } => {
+                let r = if samples == 0 || samples > self.capacity {
+                    Some(Self::invalid(
+                        "capture.samples",
+                        f32::from(samples),
+                        if samples == 0 {
+                            Reason::NotPositive
+                        } else {
+                            Reason::AboveMax {
+                                max: f32::from(self.capacity),
+                            }
+                        },
+                    ))
+                } else if decimation == 0 {
+                    Some(Self::invalid(
+                        "capture.decimation",
+                        0.0,
+                        Reason::NotPositive,
+                    ))
+                } else {
+                    None
+                };
+                match r {
+                    Some(r) => self.reply(seq, Reply::Refused(r)),
+                    None => self.order(
+                        seq,
+                        Order::Capture {
+                            samples,
+                            decimation,
+                            trigger,
+                        },
+                        then,
+                        ends,
+                    ),
+                }
+            }
+            Command::ReadCapture { offset } => {
+                self.order(seq, Order::ReadCapture { offset }, then, ends);
+            }
+        }
+    }
+
+    fn complete(&mut self, p: Pending, outcome: Outcome) {
+        let reply = match outcome {
+            Outcome::Done(Err(r)) => Reply::Refused(r),
+            Outcome::Done(Ok(())) => match p.then {
+                Then::Reply => Reply::Done,
+                Then::Commit {
+                    params,
+                    source,
+                    unsaved,
+                } => {
+                    self.params = params;
+                    self.source = source;
+                    self.unsaved = unsaved;
+                    Reply::Done
+                }
+                Then::Signals(s) => {
+                    self.signals = s;
+                    Reply::Done
+                }
+                Then::Act(a) => {
+                    self.action = Some(a);
+                    match a {
+                        Action::Save(_) => Reply::Saving,
+                        Action::Restart => Reply::Restarting,
+                    }
+                }
+            },
+            Outcome::Status(mut s) => {
+                s.params = self.source;
+                s.unsaved = self.unsaved;
+                s.frames_rejected = self.rejected;
+                s.telemetry_dropped = s.telemetry_dropped.saturating_add(self.dropped);
+                self.reply(p.seq, Reply::Status(s));
+                return;
+            }
+            Outcome::Chunk(c) => Reply::Capture(c),
+        };
+        self.reply(p.seq, reply);
+    }
+}
+
+fn refused(name: &str, e: Refused) -> Refusal<'_> {
+    match e {
+        Refused::Unknown => Refusal::UnknownParam { name },
+        Refused::Fixed(why) => Refusal::ReadOnly { name, why },
+        Refused::WrongKind => Refusal::WrongKind { name },
+        Refused::Unused => Refusal::ReadOnly {
+            name,
+            why: "the actuator's magnetic circuit has the other form",
+        },
+        Refused::Invalid(e) => Refusal::Invalid(e.into()),
+    }
+}

@@ -1,0 +1,143 @@
+//! The board's application (`ema::device`) on the Cortex-M4F: the scripted bench session
+//! of `tests/common/session.rs` (arm, a refused set, a stream, a capture triggered by a
+//! move, the capture read back, a damaged frame rejected, disarm, a set) sends byte for
+//! byte the frames the host's run sends (`tests/device_host.rs`), and the instructions of
+//! `Controller::tick` (TIM2 under `-icount shift=0`) stay within [`DEVICE_BUDGET`] in
+//! every phase: disarmed, armed and holding, armed with telemetry streaming and a capture
+//! recording.
+#![no_std]
+#![no_main]
+
+#[macro_use]
+mod common;
+
+use common::session::{Session, FRAMES_HASH, FRAMES_LEN};
+use common::{Counter, FIRMWARE_MAX_DUTY};
+use cortex_m_rt::entry;
+use ema::device::Queues;
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
+    common::on_panic(info)
+}
+
+/// Budget of one `Controller::tick` \[instructions\]: the run fails above it. The largest
+/// is a tick that takes an order carrying a new configuration (a set, a load: it copies
+/// the whole controller configuration), measured 3451; about 5 % above.
+const DEVICE_BUDGET: u32 = 3_650;
+/// Budget of what the application (guard, queue poll, operating state) adds to the
+/// control tick's largest \[instructions\]: measured 70.
+const WRAP_BUDGET: u32 = 80;
+/// Budget of what a telemetry sample and a capture sample add on top \[instructions\]:
+/// measured 81 (a sample built from the tick's status, queued, and copied to the buffer).
+const RECORD_BUDGET: u32 = 90;
+
+#[entry]
+fn main() -> ! {
+    let ctr = Counter::start();
+    let overhead = ctr.overhead();
+    let mut q = Queues::new();
+    let (main, isr) = q.split();
+    let bridges = (
+        common::bridge(FIRMWARE_MAX_DUTY),
+        common::bridge(FIRMWARE_MAX_DUTY),
+    );
+    let s = match Session::new(main, isr, bridges.0, bridges.1) {
+        Ok(s) => s,
+        Err(e) => common::fail(format_args!("session: {}", e)),
+    };
+    let mut clock = || ctr.now().wrapping_sub(overhead);
+    let out = match s.run(&mut clock) {
+        Ok(o) => o,
+        Err(e) => common::fail(format_args!("session: {}", e)),
+    };
+    outln!(
+        "session: {} bytes sent, hash {:#018x} (host {} bytes, {:#018x}); {} telemetry frames, {} capture samples read back, at {} um",
+        out.len,
+        out.hash,
+        FRAMES_LEN,
+        FRAMES_HASH,
+        out.telemetry,
+        out.captured,
+        (out.x_m * 1e6) as i32
+    );
+    ensure!(
+        out.hash == FRAMES_HASH && out.len == FRAMES_LEN,
+        "the frames differ from the host's"
+    );
+    let c = out.cost;
+    for (what, app, bare) in [
+        ("disarmed", c.disarmed, None),
+        ("armed, holding", c.armed, Some(c.armed_bare)),
+        (
+            "armed, streaming and capturing",
+            c.recording,
+            Some(c.recording_bare),
+        ),
+        ("carrying an order", c.with_order, None),
+    ] {
+        match bare {
+            Some(b) => outln!(
+                "{}: Controller::tick mean {} max {}; Config::tick alone mean {} max {} ({} ticks)",
+                what,
+                app.mean(),
+                app.max,
+                b.mean(),
+                b.max,
+                app.n
+            ),
+            None => outln!(
+                "{}: Controller::tick mean {} max {} ({} ticks)",
+                what,
+                app.mean(),
+                app.max,
+                app.n
+            ),
+        }
+    }
+    ensure!(
+        c.disarmed.n >= 40 && c.armed.n >= 200 && c.recording.n > 3_000,
+        "too few ticks measured"
+    );
+    // What the application adds to the control tick, and what telemetry and the capture
+    // add to that: each held to its budget.
+    let wrap = c.armed.max.saturating_sub(c.armed_bare.max);
+    let recording = c
+        .recording
+        .max
+        .saturating_sub(c.recording_bare.max)
+        .saturating_sub(wrap);
+    outln!(
+        "the application adds at most {} instructions to the control tick; telemetry and capture {} more",
+        wrap,
+        recording
+    );
+    ensure!(
+        wrap <= WRAP_BUDGET,
+        "application: {} > {}",
+        wrap,
+        WRAP_BUDGET
+    );
+    ensure!(
+        recording <= RECORD_BUDGET,
+        "telemetry and capture: {} > {}",
+        recording,
+        RECORD_BUDGET
+    );
+    for (what, n) in [
+        ("disarmed", c.disarmed.max),
+        ("armed", c.armed.max),
+        ("recording", c.recording.max),
+        ("order", c.with_order.max),
+    ] {
+        ensure!(
+            n <= DEVICE_BUDGET,
+            "{}: {} instructions > {}",
+            what,
+            n,
+            DEVICE_BUDGET
+        );
+    }
+    outln!("PASS");
+    common::exit(true)
+}

@@ -27,6 +27,16 @@
 //! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
 //! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
 //!
+//! Around the tick, the board's application, shared by the firmware and the virtual board:
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`device`] | states (disarmed, armed, moving, fault), the commands' dispatch, telemetry and capture around the tick |
+//! | [`protocol`] | the bench link's messages (postcard) and frames (COBS and a CRC) |
+//! | [`params`] | every parameter by name, validated as at build time |
+//! | [`store`] | parameters in flash, power-fail safe, with a version and a CRC |
+//! | [`analog`] | the optional analog set point (0-10 V or 4-20 mA, broken wire as a fault) |
+//!
 //! ## What the paper gets wrong or leaves loose, and what the code does
 //!
 //! * Force direction: as printed, the magnetic force opens the airgap. A reluctance force

@@ -27,7 +27,7 @@
 //! surfaces in `[(1 - s) min S, (1 + s) max S]` over the stroke, `s` the surface
 //! tolerance. The controller's lower bound goes further down where it must: the paper
 //! builds its force bound with the surface held constant, but the force of a surface that
-//! grows with the gap is weaker ([`energy_consistent_share`]), and `mu_lo` has to hold
+//! grows with the gap is weaker (`energy_consistent_share`), and `mu_lo` has to hold
 //! for it too.
 //!
 //! ## Derived settings and why

@@ -834,12 +834,13 @@ mod tests {
             }
             c.record_drive(&mut st, 2.0, false);
         }
-        // The 14th reading within the band (0.7 ms) of the last anchor: the moving reading
-        // renews it at most 4 ticks (8 um < the 8.7 um band) before the freeze, the first
-        // frozen readings (the last step plus noise) at most 2 ticks after.
+        // The 12th tick after the last exit: the velocity estimate (2 um per tick) has then
+        // travelled the 22.2 um of reference travel (1 + sqrt 2 bands of 9.2 um), and so
+        // has the reference. The last exit is one of the first frozen readings (the last
+        // step, 10 um, plus noise): at most 2 ticks after the freeze.
         let (fault, k) = found.unwrap();
         assert_eq!(fault, Fault::PositionStuck);
-        assert!((20 + 14 - 4..=20 + 14 + 2).contains(&k), "{k}");
+        assert!((20 + 12..=20 + 12 + 2).contains(&k), "{k}");
 
         // The same frozen reading from rest (an armature that a move sets off lags while
         // the coil builds its current): healthy, no fault; also when the converter's noise

@@ -45,8 +45,9 @@
 //! | shaping margin | tuned; by default [`DEFAULT_MARGIN`] |
 //! | shaping acceleration cap | the force authority at the rated current ([`TimeScales::authority_mps2`]) |
 //! | shortest move | `2.6 / alpha`: the error poles are `-alpha +- j`, and a step of the reference settles to 2 % in about `4 / alpha`; a shorter move would only be rounded off by the loop |
-//! | stuck-sensor band and travel | [`STUCK_BAND_CODES`] position codes (about 4 sigma of the converter's noise) and [`STUCK_TRAVEL_BANDS`] bands of reference travel within [`STUCK_WINDOW_S`]: the sensor's own resolution ([`stuck_detector`]) |
-//! | residual noise, jump, open | 8, 62 and 25 current codes: the current channel's own resolution ([`residual_detector`]) |
+//! | stuck-sensor band and travel | [`NOISE_ALLOWANCE_CODES`] position codes (4 sigma of the difference of two readings) and [`STUCK_TRAVEL_BANDS`] bands of reference travel: the sensor's own resolution and noise ([`stuck_detector`]) |
+//! | residual noise, jump, open | [`NOISE_ALLOWANCE_CODES`], [`JUMP_ALLOWANCES`] and [`OPEN_ALLOWANCES`] allowances in current codes: the current channel's own resolution and noise ([`residual_detector`]) |
+//! | residual window, confirmation | half the detection deadline ([`DEADLINE_S`]) in interrupt periods; [`RESIDUAL_CONFIRM_TICKS`] ticks, from the converter's noise |
 //! | tracking error | 1/8 of the stroke, for a quarter of the settling target |
 //! | a move's settling target | the paper's 0.2 s, or 1.5 times the fastest smooth move the limits allow ([`crate::trajectory::Config::minimum_time_s`]), whichever is longer |
 //!
@@ -73,9 +74,9 @@ use crate::law;
 use crate::math;
 use crate::model::{self, Bounds, Convention, Fringing, Plant, Tolerance, MU0_H_PER_M};
 use crate::observer;
-use crate::sense::{Calibration, Channel, ADC_MAX_CODE, RAIL_MARGIN_CODES};
+use crate::sense::{Calibration, Channel, ADC_MAX_CODE, NOISE_RMS_CODES, RAIL_MARGIN_CODES};
 use crate::supervisor::monitor::{Monitors, Residual, Stuck, Thermal, Tracking};
-use crate::supervisor::Limits;
+use crate::supervisor::{Limits, DEADLINE_S};
 use crate::trajectory;
 
 /// The armature, its spring and its stroke.
@@ -723,7 +724,7 @@ impl Actuator {
                     * c.peak_time_s,
             }),
             stuck: Some(stuck_detector(&sense.position)),
-            residual: Some(residual_detector(&sense.current)),
+            residual: Some(residual_detector(&sense.current, self.board.rate_hz)),
             tracking: Some(Tracking {
                 error_m: 0.125 * stroke,
                 time_s: 0.25 * settling_s,
@@ -732,45 +733,75 @@ impl Actuator {
     }
 }
 
-/// Half-width of the stuck detector's band \[code\]: about 4 sigma of the converter's
-/// 1.5 codes of noise (8.7 um on the reference board).
-pub const STUCK_BAND_CODES: f32 = 8.0;
-/// Reference travel, in bands, that must have moved a healthy reading out of the band
-/// \[-\]: a healthy reading leaves it after at most the band plus two noise excursions.
-pub const STUCK_TRAVEL_BANDS: f32 = 2.4;
-/// How long a reading may stay in the band while the reference moves \[s\]: 70 % of the
-/// 1 ms in which every fault must be named.
-pub const STUCK_WINDOW_S: f32 = 0.7e-3;
+/// Standard deviations of the difference of two converter readings that a noise
+/// allowance spans \[-\]: a healthy comparison falls outside it with a probability of
+/// about 6e-5.
+pub const NOISE_SIGMAS: f32 = 4.0;
 
-/// The stuck-position detector for a position channel: a band of
-/// [`STUCK_BAND_CODES`] codes, [`STUCK_TRAVEL_BANDS`] bands of reference travel, a
-/// [`STUCK_WINDOW_S`] window (0.6 ms and 2.1 bands tripped on 3 of 300 healthy drawn
-/// plants of the paper's actuator at 10 kHz; 0.7 ms and 2.4 bands on none of 600).
+/// The noise allowance of a comparison between two readings of one channel \[code\]:
+/// [`NOISE_SIGMAS`] standard deviations of their difference, `sqrt(2)` times the
+/// converter's [`NOISE_RMS_CODES`] (8.5 codes for the board's 1.5).
+pub const NOISE_ALLOWANCE_CODES: f32 = NOISE_SIGMAS * core::f32::consts::SQRT_2 * NOISE_RMS_CODES;
+
+/// Reference travel, in bands, that must have moved a healthy reading out of its band
+/// \[-\]: the band, plus the two readings' worst noise (each up to [`NOISE_SIGMAS`]
+/// standard deviations, together `sqrt(2)` bands), `1 + sqrt(2)`.
+pub const STUCK_TRAVEL_BANDS: f32 = 1.0 + core::f32::consts::SQRT_2;
+
+/// The stuck-position detector for a position channel (see
+/// [`crate::supervisor::monitor::Stuck`]): a band of [`NOISE_ALLOWANCE_CODES`] position
+/// codes, so that a frozen reading stays in it, and [`STUCK_TRAVEL_BANDS`] bands of
+/// reference travel, so that a healthy one leaves it first. Both follow the sensor's
+/// resolution and noise only: the detection time is that travel over the armature's
+/// speed when the sensor freezes.
 #[must_use]
 pub fn stuck_detector(position: &Channel) -> Stuck {
     Stuck {
-        window_s: STUCK_WINDOW_S,
-        band_codes: STUCK_BAND_CODES,
-        reference_m: STUCK_TRAVEL_BANDS * STUCK_BAND_CODES * position.scale.abs(),
+        band_codes: NOISE_ALLOWANCE_CODES,
+        reference_m: STUCK_TRAVEL_BANDS * NOISE_ALLOWANCE_CODES * position.scale.abs(),
     }
 }
 
-/// The electrical residual for a current channel, in its own codes: a noise allowance of
-/// 8 codes (5.6 sigma of a one-step difference at 1 code of noise, 3.8 sigma at 1.5; four
-/// in a row in the same direction are needed), a 10 % margin, evidence for 0.2 ms (at
-/// least 2 ticks), a jump of 62 codes (0.5 A on the reference board's +-16.5 A channel),
-/// open below 25 codes (0.2 A there), a gross factor of 2 and a 16-tick corner bank.
+/// Relative widening of the electrical residual's admissible change \[-\]: what the
+/// Tustin step, the sampled voltage and the unmodelled iron leave out of the coil model.
+pub const RESIDUAL_MARGIN: f32 = 0.1;
+/// Consecutive ticks a reading must stay outside the corner bank's envelope \[tick\]:
+/// with the anchor's own noise at two standard deviations, three readings beyond the
+/// [`NOISE_ALLOWANCE_CODES`] allowance by noise alone have a probability of about 2e-12.
+pub const RESIDUAL_CONFIRM_TICKS: u16 = 3;
+/// A one-step jump of the current reading, in noise allowances \[-\]: a step this far
+/// beyond every admissible change is the reading stepping, not noise.
+pub const JUMP_ALLOWANCES: f32 = 8.0;
+/// Current below which the coil counts as open, in noise allowances \[-\].
+pub const OPEN_ALLOWANCES: f32 = 3.0;
+/// Factor between a coil outside its bounds and a broken one (or a frozen reading)
+/// \[-\].
+pub const GROSS: f32 = 2.0;
+
+/// The electrical residual for a current channel at an interrupt rate \[Hz\], in the
+/// channel's own codes (see [`crate::supervisor::monitor`]): the noise allowance
+/// [`NOISE_ALLOWANCE_CODES`], a [`RESIDUAL_MARGIN`], [`RESIDUAL_CONFIRM_TICKS`] ticks of
+/// evidence, a jump of [`JUMP_ALLOWANCES`] and an open coil below [`OPEN_ALLOWANCES`]
+/// allowances, a [`GROSS`] factor, and a corner bank as long as half the detection
+/// deadline ([`DEADLINE_S`]): evidence that starts anywhere in a window is confirmed
+/// within the deadline, and a longer window only widens the envelope by the resistance
+/// and inductance spread.
 #[must_use]
-pub fn residual_detector(current: &Channel) -> Residual {
-    let code_a = current.scale.abs();
+pub fn residual_detector(current: &Channel, rate_hz: f32) -> Residual {
+    let noise_a = NOISE_ALLOWANCE_CODES * current.scale.abs();
+    let half_deadline = libm::roundf(0.5 * DEADLINE_S * rate_hz);
+    let least = f32::from(2 * RESIDUAL_CONFIRM_TICKS);
+    // At least twice the confirmation; far below u16::MAX at any plausible rate.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let window = math::clamp(half_deadline, least, f32::from(u16::MAX)) as u16;
     Residual {
-        noise_codes: 8.0,
-        margin: 0.1,
-        confirm_s: 0.2e-3,
-        jump_a: 62.0 * code_a,
-        open_a: 25.0 * code_a,
-        gross: 2.0,
-        window: 16,
+        noise_codes: NOISE_ALLOWANCE_CODES,
+        margin: RESIDUAL_MARGIN,
+        confirm_ticks: RESIDUAL_CONFIRM_TICKS,
+        jump_a: JUMP_ALLOWANCES * noise_a,
+        open_a: OPEN_ALLOWANCES * noise_a,
+        gross: GROSS,
+        window,
     }
 }
 

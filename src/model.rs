@@ -448,6 +448,13 @@ pub struct Nominal {
 }
 
 impl Nominal {
+    /// Reluctance `rho(g) = rho_x g + rho_0` \[1/H\].
+    #[inline]
+    #[must_use]
+    pub fn reluctance_per_h(&self, g_m: f32) -> f32 {
+        self.rho_x * g_m + self.rho0
+    }
+
     /// Inductance `L(g)` \[H\].
     #[inline]
     #[must_use]

@@ -6,7 +6,8 @@
 //!
 //! The hardware constants of the reference board are here, one per fact, with units:
 //! [`POSITION_ZERO_CODE`], [`POSITION_M_PER_CODE`], [`CURRENT_ZERO_CODE`],
-//! [`CURRENT_A_PER_CODE`], [`VBUS_V_PER_CODE`], [`RAIL_MARGIN_CODES`].
+//! [`CURRENT_A_PER_CODE`], [`VBUS_V_PER_CODE`], [`RAIL_MARGIN_CODES`],
+//! [`NOISE_RMS_CODES`].
 
 use crate::config::{self, Error};
 use crate::supervisor::Fault;
@@ -28,6 +29,10 @@ pub const CURRENT_A_PER_CODE: f32 = 16.5 / 2048.0;
 pub const VBUS_V_PER_CODE: f32 = 72.6 / 4096.0;
 /// Codes this close to either rail mean an open or shorted sensor (1 % of full scale).
 pub const RAIL_MARGIN_CODES: u16 = 41;
+/// Converter noise of every channel, RMS \[code\]: what the fault detectors' noise
+/// allowances are built from (`ema::actuator`), and what the simulator's typical converter
+/// adds.
+pub const NOISE_RMS_CODES: f32 = 1.5;
 
 /// One set of simultaneous conversions, as read from the ADC.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -284,7 +284,7 @@ fn main() -> ! {
                 x_m: m.x_m,
                 i_a: m.i_a,
                 r_m: s.reference.x_m,
-                r_v_mps: s.reference.v_mps,
+                target_m: setpoint,
                 v_mps: s.estimate.v_mps,
             };
             let t0 = ctr.now();

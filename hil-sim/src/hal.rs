@@ -390,12 +390,12 @@ impl Default for Adc {
 }
 
 impl Adc {
-    /// A typical converter: 12 bits, 1.5 codes RMS of noise on every channel, one sample of
-    /// delay, seed 1.
+    /// A typical converter: 12 bits, the board's noise ([`ema::sense::NOISE_RMS_CODES`],
+    /// 1.5 codes RMS) on every channel, one sample of delay, seed 1.
     #[must_use]
     pub fn typical() -> Self {
         let noise = ChannelError {
-            noise_rms_code: 1.5,
+            noise_rms_code: f64::from(ema::sense::NOISE_RMS_CODES),
             ..ChannelError::default()
         };
         Self {

@@ -1,8 +1,8 @@
 //! Fault injection on the product's actuator: each fault is named within 1 ms with its own
 //! code, after its injection, the coil current never exceeds the trip level (the
-//! actuator's peak current), the bridge coasts from then on, and nothing panics; two
-//! limits are pinned as measured. On every actuator of the family, healthy runs raise
-//! nothing.
+//! actuator's peak current), the bridge coasts from then on, and nothing panics. Every
+//! family member's table is pinned as measured, its limits included. On every actuator
+//! of the family, healthy runs raise nothing.
 
 use ema::supervisor::Fault;
 use hil_sim::actuator::{self, FAMILY};
@@ -57,21 +57,199 @@ case!(supply_over_voltage, "supply over-voltage");
 case!(missed_deadlines, "missed deadlines");
 case!(tick_stops, "tick stops");
 
-/// Two limits on the product's actuator in the physical convention, pinned: a current
-/// reading frozen where the current changes fastest during a move is named, but after
-/// more than 1 ms (a physical move asks for tens of milliamperes per tick: measured
-/// 1.65 ms); a plant whose surfaces are half the physical lower bound is controlled, and
-/// no detector names it (measured: no fault, the current under the trip).
+/// What a case does on a family member, as measured (`hil-sim faults MEMBER`).
+#[derive(Clone, Copy, Debug)]
+enum Pin {
+    /// The expected fault, named after the injection, within the bound \[us\] (at most
+    /// the 1 ms deadline), the current under the trip level, the bridge coasting.
+    Named(f64),
+    /// A limit: the expected-or-other fault `.0`, named only after the deadline, between
+    /// `.1` and `.2` \[us\] (see [`current_stuck_is_unobservable_within_the_deadline`]).
+    Late(&'static str, f64, f64),
+    /// A limit: nothing named; the plant is controlled, the current under the trip level.
+    Unnamed,
+}
+
+use Pin::{Late, Named, Unnamed};
+
+/// Each member's table, in the order of [`cases`]: position sensor open, shorted, stuck;
+/// current sensor stuck, offset; coil open, short; supply sag, over-voltage; missed
+/// deadlines; tick stops; plant outside the bounds (timed from power-up). The bounds are
+/// the measured latencies rounded up to the next 50 us.
+const TABLES: [(&str, [Pin; 12]); 5] = [
+    (
+        "product",
+        [
+            Named(50.0),
+            Named(50.0),
+            Named(600.0),
+            Late("current_stuck", 1000.0, 1750.0),
+            Named(100.0),
+            Named(200.0),
+            Named(200.0),
+            Named(100.0),
+            Named(100.0),
+            Named(200.0),
+            Named(250.0),
+            Unnamed,
+        ],
+    ),
+    (
+        "valve",
+        [
+            Named(50.0),
+            Named(50.0),
+            Named(650.0),
+            Late("current_stuck", 1000.0, 5600.0),
+            Named(100.0),
+            Named(200.0),
+            Named(200.0),
+            Named(100.0),
+            Named(100.0),
+            Named(200.0),
+            Named(250.0),
+            Unnamed,
+        ],
+    ),
+    (
+        "solenoid-12v",
+        [
+            Named(100.0),
+            Named(100.0),
+            Late("current_stuck", 1000.0, 9250.0),
+            Late("current_stuck", 1000.0, 8150.0),
+            Named(200.0),
+            Named(400.0),
+            Named(400.0),
+            Named(200.0),
+            Named(200.0),
+            Named(400.0),
+            Named(400.0),
+            Named(400.0),
+        ],
+    ),
+    (
+        "positioner-48v",
+        [
+            Named(50.0),
+            Named(50.0),
+            Named(650.0),
+            Late("current_stuck", 1000.0, 2500.0),
+            Named(50.0),
+            Named(100.0),
+            Named(100.0),
+            Named(50.0),
+            Named(50.0),
+            Named(100.0),
+            Named(200.0),
+            Named(100.0),
+        ],
+    ),
+    (
+        "plunger-1kg",
+        [
+            Named(50.0),
+            Named(50.0),
+            Named(1000.0),
+            Named(600.0),
+            Named(100.0),
+            Named(200.0),
+            Named(300.0),
+            Named(100.0),
+            Named(100.0),
+            Named(200.0),
+            Named(300.0),
+            Named(200.0),
+        ],
+    ),
+];
+
+/// Every member's fault table as pinned in [`TABLES`]: the named fault and its latency
+/// bound per case; the limits named as measured.
 #[test]
-fn the_product_limits_are_as_measured() {
-    let stuck = outcome("current sensor stuck");
-    assert_eq!(stuck.fault.as_deref(), Some("current_stuck"));
-    let after = stuck.detected_after_s.unwrap();
-    assert!(after > DEADLINE_S && after < 2.0 * DEADLINE_S, "{after}");
-    assert!(stuck.peak_current_a <= stuck.trip_a);
-    let outside = outcome("plant outside the bounds");
-    assert_eq!(outside.fault, None);
-    assert!(outside.peak_current_a <= outside.trip_a);
+fn every_member_s_fault_table_is_as_pinned() {
+    for (member, pins) in &TABLES {
+        let (name, act) = actuator::load(member).unwrap();
+        let all = cases(&actuator::scenario(&name, &act).unwrap()).unwrap();
+        assert_eq!(all.len(), pins.len(), "{member}");
+        for (c, pin) in all.iter().zip(pins) {
+            let o = evaluate(c).unwrap();
+            let us = o.detected_after_s.map(|t| t * 1e6);
+            let what = format!("{member}, {}: {:?} after {us:?} us", c.name, o.fault);
+            assert!(
+                o.peak_current_a <= o.trip_a,
+                "{what}: peak {}",
+                o.peak_current_a
+            );
+            match *pin {
+                Named(bound_us) => {
+                    assert!(bound_us <= DEADLINE_S * 1e6, "{what}");
+                    assert_named_safely(&o);
+                    let t = us.unwrap();
+                    assert!(
+                        t > 0.0 && t <= bound_us + 1e-3,
+                        "{what}: bound {bound_us} us"
+                    );
+                }
+                Late(fault, lo_us, hi_us) => {
+                    assert_eq!(o.fault.as_deref(), Some(fault), "{what}");
+                    let t = us.unwrap();
+                    assert!(
+                        t > lo_us && t <= hi_us + 1e-3,
+                        "{what}: {lo_us}..{hi_us} us"
+                    );
+                }
+                Unnamed => assert_eq!(o.fault, None, "{what}"),
+            }
+        }
+    }
+}
+
+/// Why a current reading frozen "where the current changes fastest" is named late on
+/// three members: over the deadline after the injection, the healthy run's true current
+/// stays within about one noise allowance of the current detectors
+/// ([`ema::actuator::NOISE_ALLOWANCE_CODES`] current codes) of its value at the
+/// injection (measured: 0.67 allowances on the valve, 0.79 on the positioner, 1.07 on the
+/// 12 V solenoid), so a reading frozen there is, for that millisecond, what an admissible
+/// coil could give: nothing observable differs, and the reading is named only once the
+/// loop has driven the current away from it. (The product is different: its current
+/// moves 5.2 allowances in that millisecond, so the late naming there, 1.7 ms, is a gap of
+/// the detector, not of observability; it is pinned as measured in [`TABLES`].)
+#[test]
+fn current_stuck_is_unobservable_within_the_deadline() {
+    for (member, limit) in [
+        ("valve", 0.7),
+        ("positioner-48v", 0.8),
+        ("solenoid-12v", 1.1),
+    ] {
+        let (name, act) = actuator::load(member).unwrap();
+        let base = actuator::scenario(&name, &act).unwrap();
+        let all = cases(&base).unwrap();
+        let c = all
+            .iter()
+            .find(|c| c.name == "current sensor stuck")
+            .unwrap();
+        let healthy = run(&base.clone().with_duration_s(c.at_s + 2.0 * DEADLINE_S)).unwrap();
+        let at = healthy
+            .trace
+            .iter()
+            .find(|s| s.t_s >= c.at_s - 1e-9)
+            .unwrap()
+            .i_a;
+        let excursion = healthy
+            .trace
+            .iter()
+            .filter(|s| s.t_s >= c.at_s && s.t_s <= c.at_s + DEADLINE_S)
+            .map(|s| (s.i_a - at).abs())
+            .fold(0.0, f64::max);
+        let allowance = f64::from(ema::actuator::NOISE_ALLOWANCE_CODES)
+            * f64::from(base.controller.sense.current.scale.abs());
+        println!(
+            "{member}: {excursion} A within 1 ms, allowance {allowance} A ({} allowances)",
+            excursion / allowance
+        );
+        assert!(excursion < limit * allowance, "{member}: {excursion} A");
+    }
 }
 
 /// A detection that comes before the injection is not a detection: the table's verdict

@@ -102,7 +102,7 @@ impl Settings {
             monitors: Monitors {
                 thermal: None,
                 stuck: Some(actuator::stuck_detector(&sense.position)),
-                residual: Some(actuator::residual_detector(&sense.current)),
+                residual: Some(actuator::residual_detector(&sense.current, rate_hz)),
                 tracking: None,
             },
         }
@@ -383,7 +383,7 @@ impl Config {
             x_m: m.x_m,
             i_a: m.i_a,
             r_m: status.reference.x_m,
-            r_v_mps: status.reference.v_mps,
+            target_m: setpoint_m,
             v_mps: status.estimate.v_mps,
         };
         if let Some(fault) = self.monitors.check(&mut state.monitor, &seen) {

@@ -14,6 +14,11 @@ use crate::sense::Measurement;
 pub mod monitor;
 pub use monitor::Monitors;
 
+/// The product's requirement: every fault is named within this time of becoming
+/// observable \[s\]. The fault detectors' windows are sized from it
+/// ([`crate::actuator::residual_detector`]).
+pub const DEADLINE_S: f32 = 1e-3;
+
 /// Fault codes. The numeric value is stable (logged, stored, compared in golden traces).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]

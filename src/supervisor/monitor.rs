@@ -1,6 +1,11 @@
 //! Fault detectors that need history: I^2 t, stuck position sensor, the coil's electrical
 //! response, tracking error. Each is optional and runs inside the tick.
 //!
+//! ## Stuck position sensor
+//!
+//! See [`Stuck`]: a reading that stops within its noise band mid-move, while the reference
+//! runs on toward a target the reading has not reached.
+//!
 //! ## Electrical residual
 //!
 //! Between two current samples the bridge applied a known average voltage `u` (the drive
@@ -12,36 +17,61 @@
 //! di = (Ts / L) (u - R i) / (1 + R Ts / (2 L))
 //! ```
 //!
-//! The four corners bound the admissible change; the interval is widened by a relative
-//! `margin` and by `noise_codes` steps of the current converter (the allowance follows the
-//! calibration: the same board noise is 8 mA per code on a +-16.5 A channel and 20 mA on
-//! a +-40 A one). A measured change outside it is evidence against
-//! the coil or the sensor:
+//! **The corner bank.** From an anchor (a reading), the four corner coils (`L_lo` or
+//! `L_hi`, `R_lo` or `R_hi`) are advanced tick by tick under the applied voltage. Their
+//! envelope, widened by a relative `margin` of its own extent, by `noise_codes` steps of
+//! the current converter (the allowance follows the calibration: the same board noise is
+//! 8 mA per code on a +-16.5 A channel and 20 mA on a +-40 A one) and by the back-EMF
+//! allowance, holds every admissible coil's current. A reading outside it for
+//! `confirm_ticks` ticks in a row on the same side is evidence against the coil or the
+//! sensor. The anchor is renewed every `window` ticks, but not while the reading is
+//! outside: evidence that starts late in a window is not thrown away. Summed over
+//! several ticks, the bank sees drives far too weak to show in a single step (a slow
+//! ramp, a coil slightly faster than its bounds), against a noise allowance paid once.
 //!
-//! | evidence | fault |
+//! Which fault it is follows from where the reading went, relative to the direction the
+//! admissible coils were driven (all corners above the anchor: driven up; all below:
+//! driven down; otherwise holding):
+//!
+//! | reading outside the envelope | fault |
 //! |---|---|
-//! | one isolated step beyond the interval by more than `jump_a`, the next step admissible again | [`Fault::CurrentOffset`] (a step in the reading no coil can make; found one tick later) |
-//! | `confirm_s` of steps below, current near 0 | [`Fault::CoilOpen`] |
-//! | `confirm_s` of steps below, summed change under `1/gross` of the least admissible | [`Fault::CurrentStuck`] |
-//! | `confirm_s` of steps above, resistance fitted below `R_lo / gross` | [`Fault::CoilShort`] |
-//! | `confirm_s` of steps outside otherwise, or alternating above and below | [`Fault::ModelBounds`] |
+//! | within `open_a` of zero while every admissible coil carries current | [`Fault::CoilOpen`] |
+//! | behind the drive, moved less than `1/gross` of the least admissible change | [`Fault::CurrentStuck`] |
+//! | behind the drive, but moved along it | [`Fault::ModelBounds`] (a coil slower than its bounds) |
+//! | ahead of the drive, against it, or away while holding: resistance fitted below `R_lo / gross` | [`Fault::CoilShort`] |
+//! | the same, resistance fitted above | [`Fault::ModelBounds`] (a coil faster than its bounds) |
 //!
-//! Sums over the run of outside steps, not single steps, decide between "broken" and
-//! "outside the bounds": a single step's admissible change can be close to zero (holding,
-//! `u = R i`), where any ratio is meaningless. Above the interval, the deviation from the
-//! nominal prediction `p = k (u - R i)/(1 + R k/2)` (`k = Ts/L_nom`) is fitted by least
-//! squares over the run as `e = a p + b k i`: `a` is an inductance error, `b` a resistance
-//! deficit. A short is a resistance far below its bound (`R - b < R_lo / gross`); when the
-//! run carries almost no current (`k i` tiny) `b` is not identifiable and the verdict is
-//! `ModelBounds`. Steps outside the interval that alternate in sign are the signature of
-//! an inductance below its bound: the current loop, tuned for the bounds, overshoots on
-//! such a coil.
+//! A frozen reading and a shorted coil that the law has already brought back to holding
+//! look alike (the current stays put on a voltage below what holds it in any admissible
+//! coil); they differ in what came first: a short makes the current run ahead of every
+//! admissible coil (or against the drive that the law then applies), a frozen reading
+//! never moves. So the verdict takes the reading's move since the anchor, and the anchor
+//! is kept while the evidence builds.
+//!
+//! **The fit.** Over the bank's window, the deviation `e` of each measured change from
+//! the nominal prediction `p = k (u - R i)/(1 + R k/2)` (`k = Ts/L_nom`) is fitted by
+//! least squares as `e = a p + b k i`: `a` is an inductance error, `b` a resistance
+//! deficit; the resistance fitted is `R - b`. When `p` and `k i` are proportional (the
+//! law holding on a constant voltage) the two cannot be separated and all of it is
+//! taken as resistance, which is what a short that the law holds looks like.
+//!
+//! **One step.** A single measured change beyond the one-step interval of the corners by
+//! more than `jump_a` plus `gross - 1` times the largest admissible change (no coil even
+//! `gross` times faster than the fastest admissible one makes it), followed by an
+//! admissible step, is a step in the reading, not in the coil: [`Fault::CurrentOffset`],
+//! found one tick later. A step that lands within `open_a` of zero is left to the bank: a
+//! coil that opens drops its current to zero within a period.
 //!
 //! The motional back-EMF `e = s_emf v i mu(g)` (the armature's velocity `v` from the
 //! observer) adds to the applied voltage: `di = k (u + e - R i) / (1 + R k / 2)`. It is
 //! taken with the nominal `mu` and an allowance of [`EMF_SPREAD`] of itself either way
 //! (the surfaces' bounds and the velocity estimate's error): on a fast, small valve it is
 //! as large as the resistive drop, and left out it reads as a coil outside its bounds.
+//!
+//! What this cannot see: a reading frozen while the coil is driven no harder than the
+//! resistance tolerance explains (`|u - R i| <= tol R |i|`, holding or a slow move)
+//! agrees with an admissible coil; it becomes observable only once the law, acting on the
+//! frozen reading, has driven the real current away from it.
 
 use super::Fault;
 use crate::config::{self, Error};
@@ -53,6 +83,10 @@ use crate::sense::Calibration;
 /// anywhere in its bounds (at most +-25 % of nominal for +-20 % surfaces) and the
 /// velocity estimate's error during a move \[-\].
 pub const EMF_SPREAD: f32 = 0.5;
+
+/// How much farther the reference may travel than the reading while the reading crosses
+/// its last two bands, for the reading to count as moving with it \[-\] (see [`Stuck`]).
+pub const MOVING_RATIO: f32 = 1.5;
 
 /// I^2 t protection of the coil.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,33 +100,47 @@ pub struct Thermal {
     pub allowance_a2s: f32,
 }
 
-/// Stuck position sensor: the reading stays within its noise band while the reference
-/// moves.
+/// Stuck position sensor: the reading stops within its noise band mid-move while the
+/// reference runs on.
 ///
 /// A frozen sensor output still reaches the tick through the converter, with the
 /// converter's noise: the evidence is a reading that stays within `band_codes` of where
-/// it was (an anchor, renewed whenever the reading leaves the band) for `window_s` while
-/// the reference has travelled `reference_m`. A healthy loop follows the reference within
-/// micrometres, so its reading leaves the band long before (set `reference_m` well above
-/// the band). A
-/// reading that waits while the reference comes *toward* it is healthy too: a plant that
-/// led the reference near the end of a move does exactly that. So the reference must be
-/// moving fast, at least `reference_m / window_s` (30 mm/s by default) at the tick that
-/// decides: near the end of a move a healthy armature that stopped ahead of a slow
-/// reference is static on this time scale (a 20 um error moves a 0.1 kg armature by
-/// nanometres in 0.7 ms). A sensor frozen during a slow move is left to the tracking
-/// detector.
+/// it last left its band (an anchor, renewed at every exit) while the armature, by the
+/// observer's velocity estimate (which runs on the coil current and the force model as
+/// much as on the reading), has travelled `reference_m` the way the reading was going.
+/// A healthy reading leaves the band before: `reference_m` is the band plus the
+/// converter's worst noise excursions of the anchor and of the newest reading. (Counting
+/// the reading's own crossing times instead, "in one band longer than the last crossings
+/// took", names a healthy armature that slows down while its noise stretches one
+/// crossing and shortens the one before.)
 ///
-/// The reading must also have been moving fast when it stopped, the way the reference
-/// travels: it left its last two bands the same way, the last one after less than half the
-/// window (one exit alone can be the converter's noise between two readings). A sensor
-/// that freezes mid-move stops at full speed; an armature that comes to rest ahead of a
-/// short, fast reference (a strong magnet can bring it there first) slows down through its
-/// last bands. An armature at rest that a move sets off lags its
-/// reference by the time the coil needs to build the current that overcomes the spring and
-/// its preload (milliseconds on a valve: longer than any useful window), and during that
-/// lag its reading stays put while the reference runs; it is healthy. A sensor that froze
-/// mid-move is caught; one that froze at rest is left to the tracking detector.
+/// Four conditions keep healthy motion out:
+///
+/// * **the reading was moving with the reference**: it left its last two bands the same
+///   way, and while it crossed the last one the reference travelled at most
+///   [`MOVING_RATIO`] times as far as the reading. An armature at rest that a move sets
+///   off lags its reference by the time the coil needs to build the current that
+///   overcomes the spring and its preload (milliseconds on a valve): during that lag the
+///   reference runs away from a static reading, and its first band crossings are slow
+///   beside the reference: it is healthy, and not yet moving;
+/// * **the reading crossed its last two bands within the deadline**
+///   ([`crate::supervisor::DEADLINE_S`], in interrupt periods), at least two bands per
+///   deadline: a slower reading could not be named within the deadline anyway, and a
+///   creep that slow (an armature that the start-up left ahead of a slow reference, at a
+///   fraction of a code per period) crosses its bands as much by the converter's noise as
+///   by its motion, which can make it look as if it moved with the reference;
+/// * **the reference runs on the same way**, by `reference_m` since the anchor: a reading
+///   that waits while the reference comes back toward it is healthy;
+/// * **the reading is short of the target** (the set point the move goes to) by more
+///   than `reference_m`: a healthy armature that leads its reference stops at the target
+///   and waits there for the reference to arrive; it does not stop halfway.
+///
+/// A sensor that freezes mid-move, with the armature at speed `v`, is found once the
+/// estimate and the reference have both run `reference_m` past the last exit: about
+/// `reference_m / v`, under the deadline whenever the reading moved at least two bands
+/// per deadline (`reference_m` is `1 + sqrt 2` bands). One that
+/// freezes at rest, or within `reference_m` of the target, looks exactly like an armature
+/// that is where it should be, and is left to the tracking detector.
 ///
 /// "No change while the current changes" is not usable as evidence: in closed loop the
 /// controller changes the current precisely to hold the position against a changing
@@ -103,8 +151,6 @@ pub struct Thermal {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Stuck {
-    /// Time within the band before it counts as stuck \[s\].
-    pub window_s: f32,
     /// Half-width of the band, in steps of the position converter \[code\].
     pub band_codes: f32,
     /// Reference travel since the anchor that must have moved the reading \[m\].
@@ -117,28 +163,22 @@ pub struct Stuck {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Residual {
-    /// Absolute widening of the admissible interval (sensor noise, back-EMF), in steps of
-    /// the current converter \[code\].
+    /// Absolute widening of the admissible envelope (converter noise), in steps of the
+    /// current converter \[code\].
     pub noise_codes: f32,
     /// Relative widening of the admissible change \[-\].
     pub margin: f32,
-    /// How long the evidence must last before a fault \[s\] (rounded to whole ticks,
-    /// at least 2).
-    pub confirm_s: f32,
+    /// Consecutive ticks outside the envelope, on one side, before a fault \[tick\]
+    /// (at least 2).
+    pub confirm_ticks: u16,
     /// One-step excess that no coil can produce \[A\].
     pub jump_a: f32,
     /// Current below which the coil counts as open \[A\].
     pub open_a: f32,
     /// Factor between "outside the bounds" and "broken" \[-\].
     pub gross: f32,
-    /// Length of the corner-bank window \[ticks\].
-    #[cfg_attr(feature = "serde", serde(default = "default_window"))]
+    /// Length of the corner bank's window \[tick\] (at least 2).
     pub window: u16,
-}
-
-#[cfg(feature = "serde")]
-const fn default_window() -> u16 {
-    16
 }
 
 /// Tracking error too large for too long.
@@ -189,18 +229,16 @@ impl Monitors {
             config::positive("monitors.thermal.allowance_a2s", t.allowance_a2s)?;
         }
         if let Some(s) = &self.stuck {
-            config::within("monitors.stuck.window_s", s.window_s / ts_s, 2.0, 60_000.0)?;
             config::positive("monitors.stuck.band_codes", s.band_codes)?;
             config::positive("monitors.stuck.reference_m", s.reference_m)?;
         }
         if let Some(r) = &self.residual {
             config::positive("monitors.residual.noise_codes", r.noise_codes)?;
             config::at_least("monitors.residual.margin", r.margin, 0.0)?;
-            config::within(
-                "monitors.residual.confirm_s",
-                r.confirm_s / ts_s,
-                0.0,
-                60_000.0,
+            config::at_least(
+                "monitors.residual.confirm_ticks",
+                f32::from(r.confirm_ticks),
+                2.0,
             )?;
             config::positive("monitors.residual.jump_a", r.jump_a)?;
             config::at_least("monitors.residual.open_a", r.open_a, 0.0)?;
@@ -218,33 +256,29 @@ impl Monitors {
             }
             None => 0,
         };
+        // The deadline in whole periods; positive, and far below u16::MAX at any rate the
+        // tick runs at.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let moving_ticks = math::clamp(
+            libm::roundf(super::DEADLINE_S / ts_s),
+            1.0,
+            f32::from(u16::MAX),
+        ) as u16;
         let r = plant.resistance_ohm;
         let tol = plant.tolerance.resistance;
-        let (noise_a, confirm_ticks) = match &self.residual {
-            Some(r) => {
-                // In [0, 60000] (checked above): nearest tick, cannot overflow.
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                let n = libm::roundf(r.confirm_s / ts_s) as u16;
-                (r.noise_codes * sense.current.scale.abs(), n.max(2))
-            }
-            None => (0.0, 0),
-        };
-        let (band_m, stuck_ticks) = match &self.stuck {
-            Some(s) => {
-                // In [2, 60000] (checked above): nearest tick, cannot overflow.
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                let n = libm::roundf(s.window_s / ts_s) as u16;
-                (s.band_codes * sense.position.scale.abs(), n)
-            }
-            None => (0.0, 0),
-        };
+        let noise_a = self
+            .residual
+            .as_ref()
+            .map_or(0.0, |r| r.noise_codes * sense.current.scale.abs());
+        let band_m = self
+            .stuck
+            .as_ref()
+            .map_or(0.0, |s| s.band_codes * sense.position.scale.abs());
         Ok(Config {
             monitors: *self,
             ts_over_n2: ts_s / plant.magnetics.turns_sq(),
             noise_a,
-            confirm_ticks,
             band_m,
-            stuck_ticks,
             nominal: envelope.nominal(),
             envelope,
             convention: plant.convention,
@@ -254,6 +288,7 @@ impl Monitors {
             r_hi: r * (1.0 + tol),
             emf_sign: plant.convention.emf_sign(),
             tracking_ticks,
+            moving_ticks,
             delayed: delay_ticks > 0,
         })
     }
@@ -267,9 +302,7 @@ pub struct Config {
     /// `Ts / N^2`, so that `Ts / L(g) = rho(g) Ts / N^2` needs no division.
     ts_over_n2: f32,
     noise_a: f32,
-    confirm_ticks: u16,
     band_m: f32,
-    stuck_ticks: u16,
     envelope: Envelope,
     nominal: crate::model::Nominal,
     convention: crate::model::Convention,
@@ -279,6 +312,8 @@ pub struct Config {
     r_hi: f32,
     emf_sign: f32,
     tracking_ticks: u32,
+    /// The detection deadline in interrupt periods (see [`Stuck`]).
+    moving_ticks: u16,
     delayed: bool,
 }
 
@@ -288,41 +323,46 @@ pub struct Config {
 pub struct MonitorState {
     /// `integral of (i^2 - I_c^2) dt`, floored at 0 \[A^2 s\].
     pub i2t_a2s: f32,
-    /// Anchor of the band the reading must leave \[m\].
+    /// Anchor of the band the reading must leave: the reading at its last exit \[m\].
     x_last: f32,
-    x_same_ticks: u16,
-    /// The reading left its last two bands the same way, the last after less than half the
-    /// window: it was moving fast (one exit alone can be two noisy readings).
+    /// The reading at the exit before \[m\].
+    x_prev: f32,
+    /// The reading left its last two bands the same way, the reference travelling at most
+    /// [`MOVING_RATIO`] times as far as the reading across them.
     x_moving: bool,
     /// Direction of the reading's last exit from its band (0 before the first).
     x_dir: i8,
+    /// Reference at the reading's last exit \[m\].
     r_at_change: f32,
+    /// Reference at the exit before \[m\].
+    r_prev: f32,
+    /// Ticks since the reading's last exit.
+    x_ticks: u16,
+    /// Ticks the reading's last crossing took.
+    x_prev_ticks: u16,
+    /// Travel of the velocity estimate since the reading's last exit, the way it went
+    /// \[m\].
+    x_travel: f32,
     i_prev: f32,
     /// Average voltage applied by the last two drives, newest first, and whether the
     /// bridge was driving (not coasting) then.
     u_hist: [(f32, bool); 2],
-    below: u16,
-    above: u16,
-    /// Consecutive steps outside the interval, in either direction.
-    outside: u16,
-    /// The previous step was the first one outside the interval, by more than `jump_a`.
+    /// The previous step was beyond the one-step interval by a jump.
     jumped: bool,
-    /// Over the current run of outside steps: sum of `|measured change|`.
-    run_meas: f32,
-    /// Over the current run: sum of the least admissible change.
-    run_adm: f32,
-    /// Least-squares sums over the run: `p p`, `p q`, `q q`, `p e`, `q e`.
-    fit: [f32; 5],
     /// Corner bank: the four corner coils' currents since the anchor \[A\].
     bank: [f32; 4],
     /// Measured current at the bank's anchor \[A\].
     bank_anchor: f32,
     /// Ticks since the anchor (0: anchor at the next step).
     bank_ticks: u16,
-    /// Consecutive steps with the reading below the bank.
-    bank_below: u16,
+    /// Consecutive steps with the reading outside the bank on the side `bank_side`.
+    bank_out: u16,
+    /// Side of the envelope the reading was last outside on: `1` above, `-1` below.
+    bank_side: i8,
     /// The back-EMF allowance accumulated by the bank since its anchor \[A\].
     bank_emf: f32,
+    /// Least-squares sums over the bank's window: `p p`, `p q`, `q q`, `p e`, `q e`.
+    fit: [f32; 5],
     off_track: u32,
     primed: bool,
 }
@@ -346,11 +386,14 @@ pub struct Inputs {
     pub i_a: f32,
     /// Reference position \[m\].
     pub r_m: f32,
-    /// Reference velocity \[m/s\].
-    pub r_v_mps: f32,
+    /// Set point the reference is heading to \[m\].
+    pub target_m: f32,
     /// Estimated velocity \[m/s\] (for the motional back-EMF).
     pub v_mps: f32,
 }
+
+/// The four corner coils of a step: gain `k / (1 + R k / 2)` and resistance.
+type Corners = [(f32, f32); 4];
 
 impl Config {
     /// Runs every enabled detector; the first fault found, if any.
@@ -359,7 +402,9 @@ impl Config {
         if !st.primed {
             *st = MonitorState {
                 x_last: inp.x_m,
+                x_prev: inp.x_m,
                 r_at_change: inp.r_m,
+                r_prev: inp.r_m,
                 i_prev: inp.i_a,
                 primed: true,
                 ..MonitorState::default()
@@ -391,24 +436,36 @@ impl Config {
 
     fn stuck(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
         let s = self.monitors.stuck.as_ref()?;
-        if (inp.x_m - st.x_last).abs() > self.band_m {
-            let dir = if inp.x_m > st.x_last { 1 } else { -1 };
-            // Fast: out of its band in less than half the window.
-            st.x_moving =
-                2 * u32::from(st.x_same_ticks) < u32::from(self.stuck_ticks) && dir == st.x_dir;
+        let step = inp.x_m - st.x_last;
+        st.x_ticks = st.x_ticks.saturating_add(1);
+        if step.abs() > self.band_m {
+            let dir: i8 = if step > 0.0 { 1 } else { -1 };
+            let d = f32::from(dir);
+            // Over the reading's last two crossings, both the same way: how far the
+            // reading and the reference went.
+            let (x_run, r_run) = ((inp.x_m - st.x_prev) * d, (inp.r_m - st.r_prev) * d);
+            st.x_moving = dir == st.x_dir
+                && r_run > 0.0
+                && r_run <= MOVING_RATIO * x_run
+                && st.x_ticks.saturating_add(st.x_prev_ticks) <= self.moving_ticks;
+            st.x_prev_ticks = st.x_ticks;
+            st.x_ticks = 0;
+            st.x_travel = 0.0;
             st.x_dir = dir;
+            st.x_prev = st.x_last;
+            st.r_prev = st.r_at_change;
             st.x_last = inp.x_m;
-            st.x_same_ticks = 0;
             st.r_at_change = inp.r_m;
             return None;
         }
-        st.x_same_ticks = st.x_same_ticks.saturating_add(1);
-        // Fast, the way the reading was moving.
-        let fast = inp.r_v_mps.abs() * s.window_s >= s.reference_m
-            && (inp.r_v_mps > 0.0) == (st.x_dir > 0);
-        let moved = (inp.r_m - st.r_at_change).abs() >= s.reference_m && fast;
-        (st.x_same_ticks >= self.stuck_ticks && moved && st.x_moving)
-            .then_some(Fault::PositionStuck)
+        let dir = f32::from(st.x_dir);
+        // Stopped: still in one band while the velocity estimate has travelled the
+        // reference travel since the exit, and the reference ran on; short of the target.
+        st.x_travel += inp.v_mps * dir * self.ts_s;
+        let stopped = st.x_travel >= s.reference_m;
+        let ran_on = (inp.r_m - st.r_at_change) * dir >= s.reference_m;
+        let short = (inp.target_m - st.x_last) * dir > s.reference_m;
+        (st.x_moving && stopped && ran_on && short).then_some(Fault::PositionStuck)
     }
 
     fn residual(&self, st: &mut MonitorState, inp: &Inputs) -> Option<Fault> {
@@ -420,12 +477,8 @@ impl Config {
             st.u_hist[0]
         };
         if !driving {
-            st.below = 0;
-            st.above = 0;
-            st.outside = 0;
             st.jumped = false;
             st.bank_ticks = 0;
-            st.bank_below = 0;
             return None;
         }
         let g = self.convention.gap_m(inp.x_m);
@@ -454,76 +507,39 @@ impl Config {
             d_min = math::running_min(d_min, f * (u - du - res * i0));
             d_max = math::running_max(d_max, f * (u + du - res * i0));
         }
-        if let Some(f) = self.bank(r, st, inp.i_a, i0, u, du * gain(k_hi, self.r_lo), &corners) {
-            return Some(f);
-        }
-        let widen = r.margin * math::running_max(d_min.abs(), d_max.abs()) + self.noise_a;
         let d_meas = inp.i_a - i0;
+        // One step: beyond the interval by more than a coil `gross` times the fastest
+        // admissible one could explain, then back inside: the reading stepped.
+        let largest = math::running_max(d_min.abs(), d_max.abs());
+        let widen = r.margin * largest + self.noise_a;
         let (lo, hi) = (d_min - widen, d_max + widen);
-        let big = d_meas > hi + r.jump_a || d_meas < lo - r.jump_a;
-        if !(d_meas < lo || d_meas > hi) {
-            // Back inside after a single large excursion: the reading stepped, the coil
-            // did not.
-            let offset = st.jumped && (st.below == 1 || st.above == 1);
-            st.below = 0;
-            st.above = 0;
-            st.outside = 0;
-            st.jumped = false;
-            return offset.then_some(Fault::CurrentOffset);
+        let offset = st.jumped && !(d_meas < lo || d_meas > hi);
+        let reach = r.jump_a + (r.gross - 1.0) * largest;
+        st.jumped = (d_meas > hi + reach || d_meas < lo - reach) && inp.i_a.abs() >= r.open_a;
+        // The nominal prediction and the regressors of the fit.
+        let k = self.ts_over_n2 * self.nominal.reluctance_per_h(g);
+        let p = gain(k, self.r_nom) * (u - self.r_nom * i0);
+        let fit = (k * i0, d_meas - p, p);
+        let bank = self.bank(
+            r,
+            st,
+            inp.i_a,
+            i0,
+            u,
+            du * gain(k_hi, self.r_lo),
+            &corners,
+            fit,
+        );
+        if offset {
+            return Some(Fault::CurrentOffset);
         }
-        st.outside = st.outside.saturating_add(1);
-        let below = d_meas < lo;
-        let first = if below { st.below == 0 } else { st.above == 0 };
-        if first {
-            st.run_meas = 0.0;
-            st.run_adm = 0.0;
-            st.fit = [0.0; 5];
-        }
-        st.jumped = first && big;
-        if below {
-            st.below = st.below.saturating_add(1);
-            st.above = 0;
-            // The least admissible change in the direction the coil is driven.
-            let least = if d_min + d_max > 0.0 {
-                math::max(d_min, 0.0)
-            } else {
-                -math::min(d_max, 0.0)
-            };
-            st.run_meas += d_meas.abs();
-            st.run_adm += least;
-            if st.below < self.confirm_ticks {
-                return (st.outside >= self.confirm_ticks).then_some(Fault::ModelBounds);
-            }
-            if inp.i_a.abs() < r.open_a && i0.abs() < r.open_a {
-                return Some(Fault::CoilOpen);
-            }
-            return Some(if st.run_meas * r.gross < st.run_adm {
-                Fault::CurrentStuck
-            } else {
-                Fault::ModelBounds
-            });
-        }
-        st.above = st.above.saturating_add(1);
-        st.below = 0;
-        let k = self.ts_s / self.nominal.inductance_h(g);
-        let p = k * (u - self.r_nom * i0) / (1.0 + 0.5 * self.r_nom * k);
-        let q = k * i0;
-        let e = d_meas - p;
-        let [pp, pq, qq, pe, qe] = st.fit;
-        st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
-        if st.above < self.confirm_ticks {
-            return (st.outside >= self.confirm_ticks).then_some(Fault::ModelBounds);
-        }
-        Some(if self.resistance_fit(&st.fit) < self.r_lo / r.gross {
-            Fault::CoilShort
-        } else {
-            Fault::ModelBounds
-        })
+        bank
     }
 
     /// The corner bank (see the module documentation): advances the four corner coils by
     /// one period under `u` and compares the reading with their envelope, widened by the
-    /// back-EMF allowance `emf_a` of each period since the anchor.
+    /// back-EMF allowance `emf_a` of each period since the anchor; accumulates the fit's
+    /// sums with the regressor `q = k i`, the deviation `e` and the prediction `p`.
     #[allow(clippy::too_many_arguments)]
     fn bank(
         &self,
@@ -533,67 +549,93 @@ impl Config {
         i0: f32,
         u: f32,
         emf_a: f32,
-        corners: &[(f32, f32); 4],
+        corners: &Corners,
+        (q, e, p): (f32, f32, f32),
     ) -> Option<Fault> {
-        if st.bank_ticks == 0 || st.bank_ticks >= r.window {
+        if st.bank_ticks == 0 || (st.bank_ticks >= r.window && st.bank_out == 0) {
             st.bank = [i0; 4];
             st.bank_anchor = i0;
             st.bank_ticks = 0;
-            st.bank_below = 0;
+            st.bank_out = 0;
+            st.bank_side = 0;
             st.bank_emf = 0.0;
+            st.fit = [0.0; 5];
         }
         st.bank_ticks = st.bank_ticks.saturating_add(1);
         st.bank_emf += emf_a;
+        let [pp, pq, qq, pe, qe] = st.fit;
+        st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for (c, &(f, res)) in st.bank.iter_mut().zip(corners) {
             *c += f * (u - res * *c);
             lo = math::running_min(lo, *c);
             hi = math::running_max(hi, *c);
         }
+        let anchor = st.bank_anchor;
         // Neither distance is NaN (the folds skip NaN, the anchor is a finite reading).
-        let spread = math::running_max((hi - st.bank_anchor).abs(), (lo - st.bank_anchor).abs());
+        let spread = math::running_max((hi - anchor).abs(), (lo - anchor).abs());
         let widen = r.margin * spread + self.noise_a + st.bank_emf;
-        // Below the bank in the direction the coil is driven: the whole bank moved away
-        // from the anchor (all corners on one side) and the reading lags all of them.
-        let rising = lo > st.bank_anchor;
-        let falling = hi < st.bank_anchor;
-        let behind = (rising && i_a < lo - widen) || (falling && i_a > hi + widen);
-        st.bank_below = if behind {
-            st.bank_below.saturating_add(1)
+        let side: i8 = if i_a > hi + widen {
+            1
+        } else if i_a < lo - widen {
+            -1
         } else {
             0
         };
-        if st.bank_below < self.confirm_ticks {
+        st.bank_out = if side == 0 {
+            0
+        } else if side == st.bank_side {
+            st.bank_out.saturating_add(1)
+        } else {
+            1
+        };
+        st.bank_side = side;
+        if st.bank_out < r.confirm_ticks {
             return None;
         }
-        if i_a.abs() < r.open_a && i0.abs() < r.open_a {
+        if i_a.abs() < r.open_a {
+            // Every admissible coil is beyond the allowance on one side of the reading.
             return Some(Fault::CoilOpen);
         }
-        // The least admissible change since the anchor, `min |c - anchor|` over the
-        // corners: the reading is behind, so every corner lies on one side of the anchor
-        // and (rounding is monotonic) the nearest is `lo` when rising, `hi` when falling.
-        let least = if rising {
-            lo - st.bank_anchor
+        // The direction the admissible coils were driven: all up, all down, or holding.
+        let drive: i8 = if lo > anchor {
+            1
+        } else if hi < anchor {
+            -1
         } else {
-            st.bank_anchor - hi
+            0
         };
-        let moved = (i_a - st.bank_anchor).abs();
-        Some(if moved * r.gross < least {
-            Fault::CurrentStuck
+        let along = (i_a - anchor) * f32::from(drive);
+        // `side` is 1 or -1 here (the reading is outside): opposite a drive that is not 0.
+        if drive != 0 && side != drive && along > -self.noise_a {
+            // Behind every admissible coil, and not against the drive. The least
+            // admissible change: every corner lies on the drive's side of the anchor and
+            // (rounding is monotonic) the nearest is `lo` when rising, `hi` when falling.
+            let least = if drive > 0 { lo - anchor } else { anchor - hi };
+            return Some(if along * r.gross < least {
+                Fault::CurrentStuck
+            } else {
+                Fault::ModelBounds
+            });
+        }
+        // Ahead of the drive, against it, or away while holding: a coil that carries more
+        // current than any admissible one on this voltage.
+        Some(if self.resistance_fit(&st.fit) < self.r_lo / r.gross {
+            Fault::CoilShort
         } else {
             Fault::ModelBounds
         })
     }
 
-    /// Resistance fitted over a run above the interval, `R_nom - b` (`R_nom` when `b` is
-    /// not identifiable).
+    /// Resistance fitted over the bank's window, `R_nom - b`; all of the deviation is
+    /// taken as resistance when the two regressors cannot be separated.
     fn resistance_fit(&self, fit: &[f32; 5]) -> f32 {
         let [pp, pq, qq, pe, qe] = *fit;
         let det = pp * qq - pq * pq;
         let b = if det > 1e-3 * pp * qq && det > 0.0 {
             (pp * qe - pq * pe) / det
-        } else if pp <= 1e-3 * qq {
-            // Holding (no drive beyond the resistive drop): all of it is resistance.
+        } else if qq > 0.0 {
+            // Proportional regressors (holding on a constant voltage): all resistance.
             qe / qq
         } else {
             0.0
@@ -645,7 +687,7 @@ mod tests {
                 x_m: g + if k % 2 == 0 { 1e-6 } else { 0.0 },
                 i_a: sensor(i),
                 r_m: g,
-                r_v_mps: 0.0,
+                target_m: 3e-3,
                 v_mps: 0.0,
             };
             if let Some(f) = c.check(&mut st, &inp) {
@@ -699,7 +741,7 @@ mod tests {
                         // The nominal coil's change since the start, scaled by `pace`.
                         i_a: i_start + pace * (i - i_start),
                         r_m: g,
-                        r_v_mps: 0.0,
+                        target_m: 3e-3,
                         v_mps: 0.0,
                     };
                     if let Some(f) = c.check(&mut st, &inp) {
@@ -729,7 +771,7 @@ mod tests {
                 x_m: 3e-3 + (k % 2) as f32 * 1e-6,
                 i_a: i,
                 r_m: 3e-3,
-                r_v_mps: 0.0,
+                target_m: 3e-3,
                 v_mps: 0.0,
             };
             if let Some(f) = c.check(&mut st, &inp) {
@@ -752,7 +794,7 @@ mod tests {
             x_m: 3e-3,
             i_a,
             r_m: 3e-3,
-            r_v_mps: 0.0,
+            target_m: 3e-3,
             v_mps: 0.0,
         };
         // Holding 6 A at 2.4 V; the reading steps by +2.5 A and stays offset.
@@ -783,7 +825,7 @@ mod tests {
                 x_m,
                 i_a: 5.0,
                 r_m: reference(k),
-                r_v_mps: 0.04,
+                target_m: 3e-3,
                 v_mps: 0.04,
             };
             if let Some(f) = c.check(&mut st, &inp) {
@@ -792,12 +834,13 @@ mod tests {
             }
             c.record_drive(&mut st, 2.0, false);
         }
-        // The 14th reading within the band (0.7 ms) of the last anchor: the moving reading
-        // renews it at most 4 ticks (8 um < the 8.7 um band) before the freeze, the first
-        // frozen readings (the last step plus noise) at most 2 ticks after.
+        // The 12th tick after the last exit: the velocity estimate (2 um per tick) has then
+        // travelled the 22.2 um of reference travel (1 + sqrt 2 bands of 9.2 um), and so
+        // has the reference. The last exit is one of the first frozen readings (the last
+        // step, 10 um, plus noise): at most 2 ticks after the freeze.
         let (fault, k) = found.unwrap();
         assert_eq!(fault, Fault::PositionStuck);
-        assert!((20 + 14 - 4..=20 + 14 + 2).contains(&k), "{k}");
+        assert!((20 + 12..=20 + 12 + 2).contains(&k), "{k}");
 
         // The same frozen reading from rest (an armature that a move sets off lags while
         // the coil builds its current): healthy, no fault; also when the converter's noise
@@ -813,7 +856,7 @@ mod tests {
                 x_m: 2e-3 + noise_codes * 1.085e-6,
                 i_a: 5.0,
                 r_m: reference(k),
-                r_v_mps: 0.04,
+                target_m: 3e-3,
                 v_mps: 0.0,
             };
             assert_eq!(c.check(&mut st, &inp), None, "tick {k}");
@@ -826,7 +869,7 @@ mod tests {
                 x_m: 2e-3,
                 i_a: 5.0,
                 r_m: 2e-3,
-                r_v_mps: 0.0,
+                target_m: 3e-3,
                 v_mps: 0.0,
             };
             assert_eq!(c.check(&mut st, &inp), None);
@@ -845,7 +888,7 @@ mod tests {
             x_m: 2e-3,
             i_a,
             r_m: 2e-3,
-            r_v_mps: 0.0,
+            target_m: 3e-3,
             v_mps: 0.0,
         };
         // At the peak current the allowance (13.2^2 - 12^2) 0.1 s lasts 0.1 s: 2000 ticks.
@@ -882,7 +925,7 @@ mod tests {
             x_m: 1e-3,
             i_a: 1.0,
             r_m: 3e-3,
-            r_v_mps: 0.0,
+            target_m: 3e-3,
             v_mps: 0.0,
         };
         c.check(&mut st, &off);

@@ -68,15 +68,18 @@ enum Pin {
     Late(&'static str, f64, f64),
     /// A limit: nothing named; the plant is controlled, the current under the trip level.
     Unnamed,
+    /// A defect: another fault `.0` named within the bound `.1` \[us\], the bridge
+    /// coasting from then on (safe, but the operator is told the wrong cause).
+    Misnamed(&'static str, f64),
 }
 
-use Pin::{Late, Named, Unnamed};
+use Pin::{Late, Misnamed, Named, Unnamed};
 
 /// Each member's table, in the order of [`cases`]: position sensor open, shorted, stuck;
 /// current sensor stuck, offset; coil open, short; supply sag, over-voltage; missed
 /// deadlines; tick stops; plant outside the bounds (timed from power-up). The bounds are
 /// the measured latencies rounded up to the next 50 us.
-const TABLES: [(&str, [Pin; 12]); 5] = [
+const TABLES: [(&str, [Pin; 12]); 6] = [
     (
         "product",
         [
@@ -162,12 +165,32 @@ const TABLES: [(&str, [Pin; 12]); 5] = [
             Named(200.0),
         ],
     ),
+    (
+        "pilot-50khz",
+        [
+            Named(50.0),
+            Named(50.0),
+            Named(400.0),
+            Named(550.0),
+            Named(50.0),
+            Named(100.0),
+            Misnamed("current_stuck", 350.0),
+            Named(50.0),
+            Named(50.0),
+            Named(100.0),
+            Named(200.0),
+            Named(100.0),
+        ],
+    ),
 ];
 
 /// Every member's fault table as pinned in [`TABLES`]: the named fault and its latency
 /// bound per case; the limits named as measured.
 #[test]
 fn every_member_s_fault_table_is_as_pinned() {
+    let pinned: Vec<&str> = TABLES.iter().map(|(m, _)| *m).collect();
+    let family: Vec<&str> = FAMILY.iter().map(|e| e.name).collect();
+    assert_eq!(pinned, family, "every member of the family has its table");
     for (member, pins) in &TABLES {
         let (name, act) = actuator::load(member).unwrap();
         let all = cases(&actuator::scenario(&name, &act).unwrap()).unwrap();
@@ -200,6 +223,15 @@ fn every_member_s_fault_table_is_as_pinned() {
                     );
                 }
                 Unnamed => assert_eq!(o.fault, None, "{what}"),
+                Misnamed(fault, bound_us) => {
+                    assert_eq!(o.fault.as_deref(), Some(fault), "{what}");
+                    assert!(o.coasting, "{what}");
+                    let t = us.unwrap();
+                    assert!(
+                        t > 0.0 && t <= bound_us + 1e-3,
+                        "{what}: bound {bound_us} us"
+                    );
+                }
             }
         }
     }

@@ -651,7 +651,7 @@ impl Actuator {
         let b = &self.board;
         let c = &self.coil;
         let current_max_a = self.current_limit_a();
-        let gains = law::discrete::Gains::new(tuning.alpha_per_s, current_max_a);
+        let gains = law::practical::Gains::new(tuning.alpha_per_s, current_max_a);
         let shaping = trajectory::Settings {
             accel_max_mps2: scales.authority_mps2,
             current_max_a,
@@ -672,7 +672,7 @@ impl Actuator {
                     0.0
                 },
             },
-            law: law::Settings::Discrete(gains),
+            law: law::Settings::Practical(gains),
             limits: Limits::for_stroke(
                 plant.stroke_m,
                 c.peak_current_a,

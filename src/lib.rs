@@ -55,7 +55,7 @@
 //! * Theorem 1's ball radius is a Lyapunov bound of the order of a metre, not a precision
 //!   figure; it is computed and reported as such.
 //! * Sampled at firmware rates the paper's law chatters tens of amperes. The product's law
-//!   ([`law::discrete`], the "practical law") keeps the paper's structure (backstepping on
+//!   ([`law::practical`], the "practical law") keeps the paper's structure (backstepping on
 //!   position and velocity on the robust design model, a sliding-mode current law built on
 //!   the inductance bounds) and redesigns each stage for a sampled, delayed, noisy loop;
 //!   the reason for each term is in its module docs.

@@ -82,7 +82,7 @@ fn case_of(law: &law::Settings) -> &'static str {
     match law {
         law::Settings::Paper(_) => "paper",
         law::Settings::BoundaryLayer(_) => "boundary_layer",
-        law::Settings::Discrete(_) => "practical",
+        law::Settings::Practical(_) => "practical",
     }
 }
 

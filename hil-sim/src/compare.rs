@@ -23,7 +23,7 @@ use crate::targets::{Targets, Worst};
 use crate::{run, Scenario};
 
 /// The laws compared.
-pub const LAWS: [&str; 3] = ["paper", "boundary_layer", "discrete"];
+pub const LAWS: [&str; 3] = ["paper", "boundary_layer", "practical"];
 /// The ISR rates \[Hz\].
 pub const RATES_HZ: [f64; 3] = [10e3, 20e3, 50e3];
 /// The supplies \[V\].
@@ -76,7 +76,7 @@ pub fn scenario(law_name: &str, rate_hz: f64, supply_v: f64) -> Result<Scenario,
     sc.controller = match law_name {
         "paper" => paper_family(law::Settings::Paper(law::paper::Gains::paper())),
         "boundary_layer" => paper_family(law::Settings::BoundaryLayer(law::paper::Gains::paper())),
-        "discrete" => sc.controller,
+        "practical" => sc.controller,
         other => {
             return Err(Error::param(
                 "law",
@@ -139,7 +139,7 @@ mod tests {
         for (law_name, pass) in [
             ("paper", false),
             ("boundary_layer", false),
-            ("discrete", true),
+            ("practical", true),
         ] {
             let sc = scenario(law_name, 20e3, 24.0).unwrap().with_duration_s(0.4);
             let t = Targets::for_scenario(&sc);

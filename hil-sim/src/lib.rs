@@ -50,9 +50,6 @@ pub mod accuracy;
 pub mod actuator;
 pub mod bench;
 pub mod catalog;
-// The argument structs' doc comments are clap's `--help` text, where `[Hz]` and
-// `<stem>` are read by people, not resolved as links or HTML.
-#[allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 pub mod cli;
 pub mod compare;
 mod error;

@@ -58,7 +58,7 @@ impl Targets {
         let rated = s.monitors.thermal.map_or_else(
             || {
                 let limit = match s.law {
-                    ema::law::Settings::Discrete(g) => g.current_max_a,
+                    ema::law::Settings::Practical(g) => g.current_max_a,
                     _ => s.limits.current_trip_a,
                 };
                 f64::from(limit) / (1.0 - f64::from(RIPPLE_SHARE))

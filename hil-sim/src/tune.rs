@@ -4,7 +4,7 @@
 //!
 //! 1. **The current loop is fixed by the bounds**: `reach` puts its pole at
 //!    `1 - 0.7 L_lo / L`, never negative over the bounds; `integral` is fixed
-//!    ([`ema::law::discrete::REACH`], [`ema::law::discrete::INTEGRAL`]).
+//!    ([`ema::law::practical::REACH`], [`ema::law::practical::INTEGRAL`]).
 //! 2. **The search space comes from the actuator** ([`Space::for_actuator`]): `alpha`
 //!    (`alpha1 = alpha2`, error poles `-alpha +- j`) on a geometric grid around its
 //!    mechanical frequency ([`ema::actuator::TimeScales::mechanical_rad_s`]), capped by
@@ -621,7 +621,7 @@ mod tests {
     fn theorem_one_holds_for_the_product_gains_and_bounds_the_ball() {
         let s = Settings::practical(20e3, 24.0).unwrap();
         let alpha = match s.law {
-            ema::law::Settings::Discrete(g) => f64::from(g.alpha1),
+            ema::law::Settings::Practical(g) => f64::from(g.alpha1),
             _ => unreachable!(),
         };
         assert_eq!(

@@ -323,7 +323,7 @@ fn compare_passes_only_the_practical_law() {
     for r in &o.rows {
         assert_eq!(
             r.pass(),
-            r.law == "discrete",
+            r.law == "practical",
             "{} {} {}: {:?}",
             r.law,
             r.rate_hz,

@@ -109,7 +109,7 @@ impl Settings {
     }
 
     /// The product's default ([`Actuator::PRODUCT`], every setting derived from it) at
-    /// `rate_hz` on a `vbus_v` supply: the practical law ([`law::discrete`]) with one
+    /// `rate_hz` on a `vbus_v` supply: the practical law ([`law::practical`]) with one
     /// sample of measurement delay, an extended-state observer, reference shaping and every
     /// fault detector, in the physical convention.
     ///

@@ -6,8 +6,8 @@
 //! panics; a non-finite output is caught by the supervisor and becomes a fault.
 
 pub mod boundary;
-pub mod discrete;
 pub mod paper;
+pub mod practical;
 
 /// Reference trajectory at the current tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -90,8 +90,8 @@ pub enum Settings {
     /// The paper's law with a boundary layer derived from the discrete stability condition
     /// ([`boundary`]).
     BoundaryLayer(paper::Gains),
-    /// The practical discrete-time law ([`discrete`]).
-    Discrete(discrete::Gains),
+    /// The practical law ([`practical`]): discrete-time, the product's.
+    Practical(practical::Gains),
 }
 
 impl Settings {
@@ -111,7 +111,9 @@ impl Settings {
             Settings::BoundaryLayer(gains) => {
                 Config::BoundaryLayer(boundary::Config::build(gains, plant, ts_s, delay_ticks)?)
             }
-            Settings::Discrete(gains) => Config::Discrete(gains.build(plant, ts_s, delay_ticks)?),
+            Settings::Practical(gains) => {
+                Config::Practical(gains.build(plant, ts_s, delay_ticks)?)
+            }
         })
     }
 
@@ -121,7 +123,7 @@ impl Settings {
         match self {
             Settings::Paper(_) => "paper",
             Settings::BoundaryLayer(_) => "boundary_layer",
-            Settings::Discrete(_) => "discrete",
+            Settings::Practical(_) => "practical",
         }
     }
 }
@@ -134,8 +136,8 @@ pub enum Config {
     Paper(paper::Config),
     /// The paper's law with a boundary layer ([`boundary`]).
     BoundaryLayer(boundary::Config),
-    /// The practical discrete-time law ([`discrete`]).
-    Discrete(discrete::Config),
+    /// The practical law ([`practical`]): discrete-time, the product's.
+    Practical(practical::Config),
 }
 
 /// State of the selected law.
@@ -144,8 +146,8 @@ pub enum Config {
 pub enum State {
     /// State of [`Config::Paper`] and [`Config::BoundaryLayer`].
     Paper(paper::State),
-    /// State of [`Config::Discrete`].
-    Discrete(discrete::State),
+    /// State of [`Config::Practical`].
+    Practical(practical::State),
 }
 
 impl Config {
@@ -154,7 +156,7 @@ impl Config {
     pub fn initial_state(&self) -> State {
         match self {
             Config::Paper(_) | Config::BoundaryLayer(_) => State::Paper(paper::State::default()),
-            Config::Discrete(_) => State::Discrete(discrete::State::default()),
+            Config::Practical(_) => State::Practical(practical::State::default()),
         }
     }
 
@@ -164,7 +166,7 @@ impl Config {
         match self {
             Config::Paper(_) => "paper",
             Config::BoundaryLayer(_) => "boundary_layer",
-            Config::Discrete(_) => "discrete",
+            Config::Practical(_) => "practical",
         }
     }
 }
@@ -183,7 +185,7 @@ impl Law for Config {
         match (self, &mut *state) {
             (Config::Paper(law), State::Paper(s)) => law.step(s, input),
             (Config::BoundaryLayer(law), State::Paper(s)) => law.step(s, input),
-            (Config::Discrete(law), State::Discrete(s)) => law.step(s, input),
+            (Config::Practical(law), State::Practical(s)) => law.step(s, input),
             _ => {
                 // A state of another law: start this law from its initial state. The
                 // second call matches one of the arms above.
@@ -191,7 +193,7 @@ impl Law for Config {
                 match (self, state) {
                     (Config::Paper(law), State::Paper(s)) => law.step(s, input),
                     (Config::BoundaryLayer(law), State::Paper(s)) => law.step(s, input),
-                    (Config::Discrete(law), State::Discrete(s)) => law.step(s, input),
+                    (Config::Practical(law), State::Practical(s)) => law.step(s, input),
                     _ => Output::default(),
                 }
             }

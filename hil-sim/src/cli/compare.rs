@@ -129,7 +129,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     );
     let rows = grid(args.duration_s)?;
     let table = table(&rows);
-    let t = Targets::for_scenario(&crate::compare::scenario("discrete", 20e3, 24.0)?);
+    let t = Targets::for_scenario(&crate::compare::scenario("practical", 20e3, 24.0)?);
     writeln!(
         out,
         "the product's actuator (physical convention), step 1 -> 3 mm, {} s, nominal plant, \

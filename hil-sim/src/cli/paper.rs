@@ -152,7 +152,7 @@ fn yes(ok: bool) -> String {
 fn alpha1(sc: &Scenario) -> f64 {
     f64::from(match sc.controller.law {
         law::Settings::Paper(g) | law::Settings::BoundaryLayer(g) => g.alpha1,
-        law::Settings::Discrete(g) => g.alpha1,
+        law::Settings::Practical(g) => g.alpha1,
     })
 }
 
@@ -310,7 +310,7 @@ fn equilibrium_um(sc: &Scenario, r: &Run) -> f64 {
     let mu = p.mu_h_per_m(p.gap_m(y));
     let a2 = match sc.controller.law {
         law::Settings::Paper(g) | law::Settings::BoundaryLayer(g) => f64::from(g.alpha2),
-        law::Settings::Discrete(g) => f64::from(g.alpha2),
+        law::Settings::Practical(g) => f64::from(g.alpha2),
     };
     -(mu_lo / mu) * p.spring_n_per_m * y / (p.mass_kg * alpha1(sc) * a2) * 1e6
 }

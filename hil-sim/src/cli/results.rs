@@ -172,7 +172,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         "## Three laws, three rates, three supplies (`hil-sim compare`)\n\n\
          The product's actuator in the physical convention, step 1 -> 3 mm, nominal plant, \
          converter noise and one sample of delay; each law with its own defaults. Only the \
-         practical law (the product's, `discrete` in the table) is expected to pass.\n"
+         practical law (the product's) is expected to pass.\n"
     )?;
     writeln!(w, "{}", c.table.to_text())?;
 

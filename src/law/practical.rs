@@ -68,18 +68,18 @@
 //! measured current) cannot see it.
 //!
 //! ```
-//! use ema::law::{self, discrete, Law};
+//! use ema::law::{self, practical, Law};
 //! use ema::model::Plant;
 //!
 //! let plant = Plant::paper();
-//! let cfg = discrete::Gains::new(130.0, 12.0).build(&plant, 1.0 / 20_000.0, 0).unwrap();
+//! let cfg = practical::Gains::new(130.0, 12.0).build(&plant, 1.0 / 20_000.0, 0).unwrap();
 //! // At rest on the 3 mm target with no disturbance estimate, the law asks for the current
 //! // that holds the softest spring with the weakest magnet: sqrt(2 * 108 * 3e-3 / mu_lo).
 //! let input = law::Input {
 //!     x_m: 3e-3, i_a: 6.45, vbus_v: 24.0,
 //!     reference: law::Reference::hold(3e-3), ..Default::default()
 //! };
-//! let out = cfg.step(&mut discrete::State::default(), &input);
+//! let out = cfg.step(&mut practical::State::default(), &input);
 //! assert!((out.i_d_a - 6.45).abs() < 0.01);
 //! // Already there: a small voltage, about the resistive drop R x3d = 2.6 V.
 //! assert!((out.u_v - 0.4 * 6.45).abs() < 0.3);

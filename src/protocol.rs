@@ -70,6 +70,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::config;
 
+/// The link's speed on a serial line \[baud\]: the firmware's UART runs at it and the host
+/// tool opens its port at it (a pseudo-terminal, the virtual board's, ignores it). 8 data
+/// bits, no parity, one stop bit.
+pub const BAUD: u32 = 460_800;
+
 /// Version of the message definitions; the first byte of every frame.
 pub const VERSION: u8 = 1;
 /// Largest frame before COBS: version, message and CRC \[bytes\].

@@ -35,9 +35,8 @@ use super::link::Link;
 use super::{fault_name, Capture};
 use crate::report::{self, sig, Figure, Panel, Series, Table};
 
-/// The link's speed \[baud\]: what a board's UART is to run at (a pseudo-terminal, the
-/// virtual board's, ignores it).
-pub const BAUD: u32 = 460_800;
+/// The link's speed \[baud\]: one definition, the core's, which the firmware's UART uses.
+pub use ema::protocol::BAUD;
 
 /// Host tool for a board on a bench (or the virtual board).
 #[derive(Debug, Parser)]

@@ -156,17 +156,7 @@ pub struct VirtualArgs {
 /// Runs the tool on the process's arguments.
 #[must_use]
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let stdout = std::io::stdout();
-    let mut out = stdout.lock();
-    match dispatch(cli, &mut out) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            let _ = out.flush();
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    crate::cli::exit(Cli::parse(), dispatch)
 }
 
 /// Opens the serial port at `path`.

@@ -108,7 +108,12 @@ impl Output {
 /// value), 2 bad command-line usage (clap's).
 #[must_use]
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    exit(Cli::parse(), dispatch)
+}
+
+/// Runs `dispatch` on a parsed command line, printing to standard output; an error goes
+/// to standard error after what was printed, and is exit code 1. Shared by both binaries.
+pub fn exit<C>(cli: C, dispatch: impl FnOnce(C, &mut dyn Write) -> anyhow::Result<()>) -> ExitCode {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match dispatch(cli, &mut out) {

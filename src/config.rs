@@ -17,10 +17,12 @@ pub struct Error {
     pub reason: Reason,
 }
 
-/// Why a parameter was refused.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Why a parameter was refused. `S` is how another parameter's or a derived quantity's
+/// name is held: `&'static str` here, a borrowed `&str` in the bench link's messages
+/// ([`crate::protocol::Invalid`]), one definition and one text for both.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum Reason {
+pub enum Reason<S = &'static str> {
     /// `NaN` or infinite.
     NotFinite,
     /// Zero or negative where only a positive value is physical.
@@ -38,14 +40,14 @@ pub enum Reason {
     /// Must be strictly below another parameter (inverted bounds).
     NotBelow {
         /// The other parameter.
-        other: &'static str,
+        other: S,
         /// Its value.
         limit: f32,
     },
     /// Must be strictly above another parameter.
     NotAbove {
         /// The other parameter.
-        other: &'static str,
+        other: S,
         /// Its value.
         limit: f32,
     },
@@ -65,7 +67,7 @@ pub enum Reason {
     /// outside the unit circle); `what` says which.
     Derived {
         /// The derived quantity.
-        what: &'static str,
+        what: S,
         /// Its value.
         derived: f32,
     },
@@ -73,8 +75,13 @@ pub enum Reason {
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} = {}: ", self.param, self.value)?;
-        match self.reason {
+        write!(f, "{} = {}: {}", self.param, self.value, self.reason)
+    }
+}
+
+impl<S: fmt::Display> fmt::Display for Reason<S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
             Reason::NotFinite => write!(f, "must be finite"),
             Reason::NotPositive => write!(f, "must be positive"),
             Reason::BelowMin { min } => write!(f, "must be at least {min}"),

@@ -309,64 +309,15 @@ pub struct Invalid<'a> {
     pub reason: Reason<'a>,
 }
 
-/// Why a value was refused (the wire form of [`crate::config::Reason`]).
-#[allow(missing_docs)]
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub enum Reason<'a> {
-    NotFinite,
-    NotPositive,
-    BelowMin {
-        min: f32,
-    },
-    AboveMax {
-        max: f32,
-    },
-    NotBelow {
-        other: &'a str,
-        limit: f32,
-    },
-    NotAbove {
-        other: &'a str,
-        limit: f32,
-    },
-    Theorem1 {
-        a: f32,
-        b: f32,
-        det_q: f32,
-        alpha2_min: f32,
-    },
-    Derived {
-        what: &'a str,
-        derived: f32,
-    },
-}
+/// Why a value was refused: [`crate::config::Reason`] with borrowed names.
+pub type Reason<'a> = config::Reason<&'a str>;
 
 impl From<config::Error> for Invalid<'static> {
     fn from(e: config::Error) -> Self {
-        use config::Reason as R;
         Invalid {
             param: e.param,
             value: e.value,
-            reason: match e.reason {
-                R::NotFinite => Reason::NotFinite,
-                R::NotPositive => Reason::NotPositive,
-                R::BelowMin { min } => Reason::BelowMin { min },
-                R::AboveMax { max } => Reason::AboveMax { max },
-                R::NotBelow { other, limit } => Reason::NotBelow { other, limit },
-                R::NotAbove { other, limit } => Reason::NotAbove { other, limit },
-                R::Theorem1 {
-                    a,
-                    b,
-                    det_q,
-                    alpha2_min,
-                } => Reason::Theorem1 {
-                    a,
-                    b,
-                    det_q,
-                    alpha2_min,
-                },
-                R::Derived { what, derived } => Reason::Derived { what, derived },
-            },
+            reason: e.reason,
         }
     }
 }
@@ -374,28 +325,7 @@ impl From<config::Error> for Invalid<'static> {
 impl fmt::Display for Invalid<'_> {
     /// The same text as [`crate::config::Error`]'s.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} = {}: ", self.param, self.value)?;
-        match self.reason {
-            Reason::NotFinite => write!(f, "must be finite"),
-            Reason::NotPositive => write!(f, "must be positive"),
-            Reason::BelowMin { min } => write!(f, "must be at least {min}"),
-            Reason::AboveMax { max } => write!(f, "must be at most {max}"),
-            Reason::NotBelow { other, limit } => write!(f, "must be below {other} = {limit}"),
-            Reason::NotAbove { other, limit } => write!(f, "must be above {other} = {limit}"),
-            Reason::Theorem1 {
-                a,
-                b,
-                det_q,
-                alpha2_min,
-            } => write!(
-                f,
-                "fails Theorem 1 (a = {a}, b = {b}, det Q = {det_q}): Q is negative definite \
-                 and alpha2 > |b| only for alpha2 > {alpha2_min}"
-            ),
-            Reason::Derived { what, derived } => {
-                write!(f, "gives {what} = {derived}, outside its admissible range")
-            }
-        }
+        write!(f, "{} = {}: {}", self.param, self.value, self.reason)
     }
 }
 

@@ -47,11 +47,7 @@ impl Entry {
     /// The first line of the file's leading comment: what the actuator is.
     #[must_use]
     pub fn summary(&self) -> &'static str {
-        self.text
-            .lines()
-            .next()
-            .and_then(|l| l.strip_prefix('#'))
-            .map_or("", str::trim)
+        crate::catalog::summary(self.text)
     }
 }
 

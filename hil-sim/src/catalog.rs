@@ -38,12 +38,18 @@ impl Entry {
     /// The first line of the file's leading comment: what the scenario is.
     #[must_use]
     pub fn summary(&self) -> &'static str {
-        self.text
-            .lines()
-            .next()
-            .and_then(|l| l.strip_prefix('#'))
-            .map_or("", str::trim)
+        summary(self.text)
     }
+}
+
+/// The first line of a TOML file's leading comment, trimmed (empty without one): what a
+/// scenario or an actuator file describes.
+#[must_use]
+pub fn summary(text: &str) -> &str {
+    text.lines()
+        .next()
+        .and_then(|l| l.strip_prefix('#'))
+        .map_or("", str::trim)
 }
 
 /// The embedded scenarios, in the order `hil-sim scenarios` lists them.

@@ -770,10 +770,11 @@ mod tests {
     }
 
     #[test]
-    fn settings_identity_tracks_every_field() {
+    fn settings_identity_follows_a_limit_and_the_rate() {
+        // Every field: hil-sim/tests/settings_identity.rs (it reads the settings as a
+        // document, which needs the `serde` feature).
         let s = (CASES[0].settings)().unwrap();
         let h = settings_hash(&s);
-        assert_eq!(h, settings_hash(&(CASES[0].settings)().unwrap()));
         let mut t = s;
         t.limits.current_trip_a = f32::from_bits(t.limits.current_trip_a.to_bits() + 1);
         assert_ne!(settings_hash(&t), h);

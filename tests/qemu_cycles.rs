@@ -33,7 +33,7 @@ use ema::control::{Config, State, Status};
 use ema::law::{self, Law, Reference};
 use ema::observer;
 use ema::sense::{Frame, Measurement};
-use ema::supervisor::monitor::{self, MonitorState};
+use ema::supervisor::monitor;
 use ema::supervisor::Fault;
 use ema::trace::CASES;
 use ema::trajectory;
@@ -109,7 +109,7 @@ fn shape(cfg: &Config, st: &mut trajectory::State, x_m: f32, setpoint_m: f32) ->
 #[inline(never)]
 fn monitor(
     cfg: &Config,
-    st: &mut MonitorState,
+    st: &mut monitor::State,
     inputs: &monitor::Inputs,
     d: &Drive,
 ) -> Option<Fault> {

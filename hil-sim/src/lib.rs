@@ -42,6 +42,18 @@
 //! | [`sim`] | the closed loop and its trace |
 //! | [`metrics`] | metrics definitions and the bounds check |
 //! | [`mod@montecarlo`] | parallel, seeded runs over drawn plants |
+//! | [`accuracy`] | how many RK4 substeps per ISR period a scenario needs, measured |
+//! | [`actuator`] | actuator files: the family in the repository, loading, tuned files |
+//! | [`catalog`] | scenario files: the embedded defaults, loading by name or from a file |
+//! | [`compare`] | the comparison of the laws over ISR rates and supplies |
+//! | [`faults`] | fault injection: the fault the supervisor must name, and how fast |
+//! | [`golden`] | golden traces for the Cortex-M4F (`ema::trace` format) |
+//! | [`lyapunov`] | Theorem 1 with a general Lyapunov matrix |
+//! | [`targets`] | the product's performance targets and their evaluation |
+//! | [`mod@tune`] | the practical law's gains for any actuator |
+//! | [`report`] | tables, decimated trace CSV files, PNG plots |
+//! | [`cli`] | the `hil-sim` command line, one module per subcommand |
+//! | [`bench`] | a board on a bench: the `bench` tool, its link, the virtual board |
 #![deny(missing_docs)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]

@@ -175,7 +175,7 @@ pub struct State {
     /// Latched fault and counters.
     pub supervisor: supervisor::State,
     /// History of the fault detectors.
-    pub monitor: monitor::MonitorState,
+    pub monitor: monitor::State,
     /// Reference-shaping state.
     pub trajectory: trajectory::State,
     /// Average voltage the bridge applied over the last period \[V\].
@@ -252,7 +252,7 @@ impl Config {
             observer: observer::State::default(),
             law: self.law.initial_state(),
             supervisor: supervisor::State::default(),
-            monitor: monitor::MonitorState::default(),
+            monitor: monitor::State::default(),
             trajectory: trajectory::State::default(),
             u_prev_v: 0.0,
             ticks: 0,

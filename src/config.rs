@@ -178,6 +178,17 @@ pub fn within(param: &'static str, value: f32, min: f32, max: f32) -> Result<f32
     }
 }
 
+/// `Ok` when the measurement delay `delay_ticks` (the age of the measurements when the tick
+/// runs) is one the stages predict across: 0 or 1 sample. Every stage built with a delay
+/// checks it here.
+///
+/// # Errors
+/// [`Reason::AboveMax`] for `delay_ticks`.
+pub fn delay_ticks(delay_ticks: u8) -> Result<u8, Error> {
+    within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+    Ok(delay_ticks)
+}
+
 /// `Ok` when `lo < hi` (both already checked finite by the caller).
 ///
 /// # Errors

@@ -95,7 +95,7 @@ impl Gains {
             Model::Nominal => plant.nominal_dynamics()?,
             Model::Robust => plant.robust_dynamics()?,
         };
-        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+        config::delay_ticks(delay_ticks)?;
         config::positive("observer.ts_s", ts_s)?;
         config::positive("observer.bandwidth_rad_s", self.bandwidth_rad_s)?;
         config::at_least(

@@ -145,7 +145,7 @@ impl Gains {
         config::positive("law.current_max_a", self.current_max_a)?;
         config::within("law.reach", self.reach, f32::MIN_POSITIVE, 1.0)?;
         config::within("law.integral", self.integral, 0.0, 0.5)?;
-        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+        config::delay_ticks(delay_ticks)?;
         let nominal = envelope.nominal();
         let dynamics = plant.robust_dynamics()?;
         // L_lo / L_nom = (rho_x_nom g + rho0) / (rho_x_hi g + rho0) >= rho_x_nom / rho_x_hi.

@@ -121,7 +121,7 @@ impl Monitors {
         delay_ticks: u8,
     ) -> Result<Config, Error> {
         let envelope = plant.envelope()?;
-        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+        config::delay_ticks(delay_ticks)?;
         if let Some(t) = &self.thermal {
             config::positive("monitors.thermal.continuous_a", t.continuous_a)?;
             config::positive("monitors.thermal.allowance_a2s", t.allowance_a2s)?;

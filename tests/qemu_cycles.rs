@@ -22,11 +22,12 @@
 
 #[macro_use]
 mod common;
+use ema::bridge::BOARD_MAX_DUTY;
 
 use core::hint::black_box;
 
 use common::plant::Plant;
-use common::{min_median_max, Bridge, Counter, FIRMWARE_MAX_DUTY};
+use common::{min_median_max, Bridge, Counter};
 use cortex_m_rt::entry;
 use ema::bridge::Drive;
 use ema::control::{Config, State, Status};
@@ -92,7 +93,7 @@ fn limits(cfg: &Config, m: &Measurement) -> Option<Fault> {
 /// The tick's reference shaping step (control::Config::step does the same).
 #[inline(never)]
 fn shape(cfg: &Config, st: &mut trajectory::State, x_m: f32, setpoint_m: f32) -> Reference {
-    let stroke = cfg.limits().position_max_m / 1.1;
+    let stroke = cfg.stroke_m();
     let setpoint_m = ema::math::clamp(setpoint_m, 0.0, stroke);
     match cfg.shaping() {
         Some(shaping) => {
@@ -168,8 +169,8 @@ fn main() -> ! {
             Err(e) => common::fail(format_args!("{}: settings do not build: {}", case.name, e)),
         };
         let mut st = cfg.initial_state();
-        let mut b = common::bridge(FIRMWARE_MAX_DUTY);
-        let mut b2 = common::bridge(FIRMWARE_MAX_DUTY);
+        let mut b = common::bridge(BOARD_MAX_DUTY);
+        let mut b2 = common::bridge(BOARD_MAX_DUTY);
         let mut plant = Plant::new(&settings, 1e-3, 24.0);
         let (mut running, mut tripped, mut tripped_max) = (0usize, 0u32, 0u32);
         let mut first_fault = None;

@@ -644,22 +644,12 @@ pub mod mode_name {
     use ema::bridge::Mode;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    /// The name of a mode.
-    #[must_use]
-    pub const fn name(mode: Mode) -> &'static str {
-        match mode {
-            Mode::Coast => "coast",
-            Mode::Forward => "forward",
-            Mode::Reverse => "reverse",
-        }
-    }
-
     /// Serde serialiser.
     ///
     /// # Errors
     /// The serializer's.
     pub fn serialize<S: Serializer>(mode: &Mode, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(name(*mode))
+        s.serialize_str(mode.name())
     }
 
     /// Serde deserialiser.
@@ -668,9 +658,9 @@ pub mod mode_name {
     /// An unknown name.
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Mode, D::Error> {
         let s = String::deserialize(d)?;
-        [Mode::Coast, Mode::Forward, Mode::Reverse]
+        Mode::ALL
             .into_iter()
-            .find(|m| name(*m) == s)
+            .find(|m| m.name() == s)
             .ok_or_else(|| serde::de::Error::custom(format!("unknown bridge mode `{s}`")))
     }
 }

@@ -7,12 +7,12 @@
 //! supplies ideal SI measurements instead of converter codes).
 //!
 //! ```
-//! use ema::bridge::{HBridge, NullPin, NullPwm};
+//! use ema::bridge::{HBridge, NullPin, NullPwm, BOARD_MAX_DUTY};
 //! use ema::control::Settings;
 //! use ema::sense::Measurement;
 //! let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
 //! let mut state = cfg.initial_state();
-//! let mut bridge = HBridge::new(NullPwm::new(4200), NullPin(false), NullPin(false)).unwrap();
+//! let mut bridge = HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
 //!
 //! // Armature at 1 mm, no current, 24 V bus, target 3 mm: the law drives current in.
 //! let frame = cfg.sense().frame(&Measurement { x_m: 1e-3, i_a: 0.0, vbus_v: 24.0 });
@@ -219,6 +219,12 @@ impl Config {
     #[must_use]
     pub const fn limits(&self) -> &Limits {
         &self.limits
+    }
+
+    /// The stroke the set point and the reference's start are clamped to \[m\].
+    #[must_use]
+    pub const fn stroke_m(&self) -> f32 {
+        self.stroke_m
     }
 
     /// The law.
@@ -430,12 +436,12 @@ mod properties;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bridge::{Mode, NullPin, NullPwm};
+    use crate::bridge::{Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
 
     fn setup() -> (Config, State, HBridge<NullPwm, NullPin>) {
         let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
         let st = cfg.initial_state();
-        let b = HBridge::new(NullPwm::new(4200), NullPin(false), NullPin(false)).unwrap();
+        let b = HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
         (cfg, st, b)
     }
 
@@ -453,7 +459,7 @@ mod tests {
         let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
         assert_eq!(s.fault, None);
         assert_eq!(s.drive.mode, Mode::Forward);
-        assert_eq!(s.drive.duty, 4200);
+        assert_eq!(s.drive.duty, BOARD_MAX_DUTY);
         assert_eq!(s.drive.u_v, 24.0);
         assert!(
             s.output.u_v > 24.0,

@@ -76,6 +76,10 @@ pub trait Law {
     fn step(&self, state: &mut Self::State, input: &Input) -> Output;
 }
 
+/// Every law, by the name configuration files give it ([`Settings::name`]), in the order
+/// the law comparison, the golden traces and the per-law counts list them.
+pub const NAMES: [&str; 3] = ["paper", "boundary_layer", "practical"];
+
 /// The law and its gains, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -121,9 +125,9 @@ impl Settings {
     #[must_use]
     pub const fn name(&self) -> &'static str {
         match self {
-            Settings::Paper(_) => "paper",
-            Settings::BoundaryLayer(_) => "boundary_layer",
-            Settings::Practical(_) => "practical",
+            Settings::Paper(_) => NAMES[0],
+            Settings::BoundaryLayer(_) => NAMES[1],
+            Settings::Practical(_) => NAMES[2],
         }
     }
 }
@@ -164,9 +168,9 @@ impl Config {
     #[must_use]
     pub const fn name(&self) -> &'static str {
         match self {
-            Config::Paper(_) => "paper",
-            Config::BoundaryLayer(_) => "boundary_layer",
-            Config::Practical(_) => "practical",
+            Config::Paper(_) => NAMES[0],
+            Config::BoundaryLayer(_) => NAMES[1],
+            Config::Practical(_) => NAMES[2],
         }
     }
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::sim::{mode_name, Sample};
+use crate::sim::Sample;
 
 /// One row of a decimated trace: the first sample of a bucket of `n` ISR samples, and the
 /// extremes over the bucket. SI units, as in [`Sample`].
@@ -137,7 +137,7 @@ pub fn decimate(trace: &[Sample], every: usize) -> Vec<Row> {
                 r_shaped_m: s.r_shaped_m,
                 vbus_v: s.vbus_v,
                 duty: s.duty,
-                mode: mode_name::name(s.mode),
+                mode: s.mode.name(),
                 fault: s.fault.map_or("", ema::supervisor::Fault::name),
             })
         })

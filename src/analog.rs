@@ -136,7 +136,7 @@ impl Settings {
     pub fn build(&self, stroke_m: f32, ts_s: f32) -> Result<Config, Error> {
         config::within("setpoint.filter_s", self.filter_s, 0.0, FILTER_MAX_S)?;
         config::positive("setpoint.stroke_m", stroke_m)?;
-        config::positive("setpoint.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         // Code -> metre: x = (code * per_code - zero) / span * stroke.
         let (per_code, zero, span) = match self.source {
             Source::Voltage | Source::Link => (VOLTAGE_V_PER_CODE, VOLTAGE_ZERO_V, VOLTAGE_SPAN_V),

@@ -189,6 +189,17 @@ pub fn delay_ticks(delay_ticks: u8) -> Result<u8, Error> {
     Ok(delay_ticks)
 }
 
+/// `Ok` when the sample period `ts_s` is finite and positive. Settings files give the
+/// control rate, not the period: a refusal names `rate_hz`, with the rate's value
+/// (`1 / ts_s`).
+///
+/// # Errors
+/// [`Reason::NotFinite`] or [`Reason::NotPositive`] for `rate_hz`.
+pub fn sample_period(ts_s: f32) -> Result<f32, Error> {
+    positive("rate_hz", 1.0 / ts_s)?;
+    Ok(ts_s)
+}
+
 /// `Ok` when `lo < hi` (both already checked finite by the caller).
 ///
 /// # Errors

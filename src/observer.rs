@@ -96,7 +96,7 @@ impl Gains {
             Model::Robust => plant.robust_dynamics()?,
         };
         config::delay_ticks(delay_ticks)?;
-        config::positive("observer.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         config::positive("observer.bandwidth_rad_s", self.bandwidth_rad_s)?;
         config::at_least(
             "observer.force_scaled_above_a",
@@ -424,5 +424,15 @@ mod tests {
         .build(&Plant::paper(), TS, 0)
         .unwrap_err();
         assert_eq!(e.param, "observer.bandwidth_rad_s");
+        // A period that no rate gives is refused as the rate settings files contain.
+        let e = Gains {
+            bandwidth_rad_s: 100.0,
+            disturbance: false,
+            model: Model::Nominal,
+            force_scaled_above_a: 0.0,
+        }
+        .build(&Plant::paper(), -TS, 0)
+        .unwrap_err();
+        assert_eq!((e.param, e.value), ("rate_hz", -1.0 / TS));
     }
 }

@@ -69,7 +69,7 @@ impl Settings {
         config::positive("shaping.current_max_a", self.current_max_a)?;
         config::within("shaping.margin", self.margin, f32::MIN_POSITIVE, 1.0)?;
         config::at_least("shaping.duration_min_s", self.duration_min_s, 0.0)?;
-        config::positive("shaping.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         Ok(Config {
             settings: *self,
             envelope,

@@ -128,7 +128,7 @@ impl Settings {
     /// The first invalid parameter, by name, with its value and the reason.
     pub fn build(&self) -> Result<Config, Error> {
         config::positive("rate_hz", self.rate_hz)?;
-        let ts_s = config::positive("ts_s", 1.0 / self.rate_hz)?;
+        let ts_s = config::sample_period(1.0 / self.rate_hz)?;
         self.plant.validate()?;
         self.sense.validate()?;
         self.limits.validate()?;
@@ -559,6 +559,10 @@ mod tests {
         assert_eq!(s.build().unwrap_err().param, "rate_hz");
         let mut s = Settings::paper(20_000.0, 24.0);
         s.rate_hz = -5.0;
+        assert_eq!(s.build().unwrap_err().param, "rate_hz");
+        // So slow that its period is not finite: still named as the rate.
+        let mut s = Settings::paper(20_000.0, 24.0);
+        s.rate_hz = 1e-39;
         assert_eq!(s.build().unwrap_err().param, "rate_hz");
         let mut s = Settings::paper(20_000.0, 24.0);
         s.law = law::Settings::Paper(law::paper::Gains {

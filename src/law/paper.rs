@@ -81,7 +81,7 @@ impl Gains {
     /// passes).
     pub fn build(&self, plant: &Plant, ts_s: f32) -> Result<Config, Error> {
         let envelope = plant.envelope()?;
-        config::positive("law.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         config::positive("law.alpha1", self.alpha1)?;
         config::positive("law.alpha2", self.alpha2)?;
         config::positive("law.eps1_v", self.eps1_v)?;
@@ -395,10 +395,10 @@ mod tests {
     #[test]
     fn non_physical_parameters_are_refused() {
         let p = Plant::paper();
-        assert_eq!(Gains::paper().build(&p, 0.0).unwrap_err().param, "law.ts_s");
+        assert_eq!(Gains::paper().build(&p, 0.0).unwrap_err().param, "rate_hz");
         assert_eq!(
             Gains::paper().build(&p, -1e-4).unwrap_err().param,
-            "law.ts_s"
+            "rate_hz"
         );
         let g = Gains {
             alpha1: f32::NAN,

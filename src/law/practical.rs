@@ -139,7 +139,7 @@ impl Gains {
     /// The first bad parameter, by name.
     pub fn build(&self, plant: &Plant, ts_s: f32, delay_ticks: u8) -> Result<Config, Error> {
         let envelope = plant.envelope()?;
-        config::positive("law.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         config::positive("law.alpha1", self.alpha1)?;
         config::positive("law.alpha2", self.alpha2)?;
         config::positive("law.current_max_a", self.current_max_a)?;

@@ -146,7 +146,9 @@ impl Monitors {
         let tracking_ticks = match &self.tracking {
             Some(t) => {
                 config::positive("monitors.tracking.error_m", t.error_m)?;
-                let ticks = config::within("monitors.tracking.time_s", t.time_s / ts_s, 1.0, 1e9)?;
+                // Checked in the file's unit, seconds: from one period to 1e9 periods.
+                config::within("monitors.tracking.time_s", t.time_s, ts_s, 1e9 * ts_s)?;
+                let ticks = math::clamp(t.time_s / ts_s, 1.0, 1e9);
                 // In [1, 1e9]: the truncation is the intended rounding down.
                 #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
                 let n = ticks as u32;

@@ -306,9 +306,12 @@ fn bad_monitor_settings_are_named() {
         .settings()
         .unwrap()
         .monitors;
-    m.tracking.as_mut().unwrap().time_s = 0.0;
+    // Shorter than one period: refused in the file's unit, seconds.
+    m.tracking.as_mut().unwrap().time_s = 1e-5;
     let e = m
         .build(&Plant::paper(), &Calibration::board(), TS, 0)
         .unwrap_err();
     assert_eq!(e.param, "monitors.tracking.time_s");
+    assert_eq!(e.value, 1e-5);
+    assert_eq!(e.reason, config::Reason::BelowMin { min: TS });
 }

@@ -1,4 +1,5 @@
-//! Decimated traces. At a 1 MHz ISR one second is a million 144-byte samples; a CSV or a
+//! The simulation's samples ([`crate::Run::samples`]) decimated for a CSV file or a plot
+//! (the `trace*.csv` files). At a 1 MHz ISR one second is a million 144-byte samples; a CSV or a
 //! plot keeps every `n`-th sample and, so that a current chattering from one sample to the
 //! next stays visible, the minimum and maximum of the current and of the coil voltage over
 //! each bucket of `n` samples.

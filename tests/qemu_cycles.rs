@@ -34,10 +34,10 @@ use ema::control::{Config, State, Status};
 use ema::law::{self, Law, Reference};
 use ema::observer;
 use ema::sense::{Frame, Measurement};
+use ema::shaping;
 use ema::supervisor::monitor;
 use ema::supervisor::Fault;
 use ema::trace::CASES;
-use ema::trajectory;
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
@@ -92,7 +92,7 @@ fn limits(cfg: &Config, m: &Measurement) -> Option<Fault> {
 
 /// The tick's reference shaping step (control::Config::step does the same).
 #[inline(never)]
-fn shape(cfg: &Config, st: &mut trajectory::State, x_m: f32, setpoint_m: f32) -> Reference {
+fn shape(cfg: &Config, st: &mut shaping::State, x_m: f32, setpoint_m: f32) -> Reference {
     let stroke = cfg.stroke_m();
     let setpoint_m = ema::math::clamp(setpoint_m, 0.0, stroke);
     match cfg.shaping() {
@@ -222,7 +222,7 @@ fn main() -> ! {
             counts.stages[1][n] = t1.wrapping_sub(t0).wrapping_sub(overhead);
             ensure!(l.is_none(), "{} tick {}: limits alone trip", case.name, k);
 
-            let mut traj = before.trajectory;
+            let mut traj = before.shaping;
             let t0 = ctr.now();
             let r = shape(
                 black_box(&cfg),

@@ -38,8 +38,8 @@ use crate::math;
 use crate::model::Plant;
 use crate::observer::{self, Estimate};
 use crate::sense::{Calibration, Frame, Measurement};
+use crate::shaping;
 use crate::supervisor::{self, monitor, Fault, Limits, Monitors};
-use crate::trajectory;
 
 /// Everything needed to build a controller, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,7 +65,7 @@ pub struct Settings {
     pub delay_ticks: u8,
     /// Reference shaping; `None` passes the set point through as a step.
     #[cfg_attr(feature = "serde", serde(default))]
-    pub shaping: Option<trajectory::Settings>,
+    pub shaping: Option<shaping::Settings>,
     /// Fault detectors that need history (all off by default in files).
     #[cfg_attr(feature = "serde", serde(default))]
     pub monitors: Monitors,
@@ -158,7 +158,7 @@ pub struct Config {
     sense: Calibration,
     observer: observer::Config,
     law: law::Config,
-    shaping: Option<trajectory::Config>,
+    shaping: Option<shaping::Config>,
     monitors: monitor::Config,
     limits: Limits,
     stroke_m: f32,
@@ -177,7 +177,7 @@ pub struct State {
     /// History of the fault detectors.
     pub monitor: monitor::State,
     /// Reference-shaping state.
-    pub trajectory: trajectory::State,
+    pub shaping: shaping::State,
     /// Average voltage the bridge applied over the last period \[V\].
     pub u_prev_v: f32,
     /// Ticks since start (wrapping).
@@ -241,7 +241,7 @@ impl Config {
 
     /// The reference shaping, if any.
     #[must_use]
-    pub const fn shaping(&self) -> Option<&trajectory::Config> {
+    pub const fn shaping(&self) -> Option<&shaping::Config> {
         self.shaping.as_ref()
     }
 
@@ -259,7 +259,7 @@ impl Config {
             law: self.law.initial_state(),
             supervisor: supervisor::State::default(),
             monitor: monitor::State::default(),
-            trajectory: trajectory::State::default(),
+            shaping: shaping::State::default(),
             u_prev_v: 0.0,
             ticks: 0,
         }
@@ -315,7 +315,7 @@ impl Config {
         state.monitor.rearm();
         state.observer = observer::State::default();
         state.law = self.law.initial_state();
-        state.trajectory = trajectory::State::default();
+        state.shaping = shaping::State::default();
         state.u_prev_v = 0.0;
     }
 
@@ -353,13 +353,10 @@ impl Config {
         let setpoint_m = math::clamp(setpoint_m, 0.0, self.stroke_m);
         status.reference = match &self.shaping {
             Some(shaping) => {
-                if !state.trajectory.is_primed() {
-                    shaping.start(
-                        &mut state.trajectory,
-                        math::clamp(m.x_m, 0.0, self.stroke_m),
-                    );
+                if !state.shaping.is_primed() {
+                    shaping.start(&mut state.shaping, math::clamp(m.x_m, 0.0, self.stroke_m));
                 }
-                shaping.step(&mut state.trajectory, setpoint_m)
+                shaping.step(&mut state.shaping, setpoint_m)
             }
             None => Reference::hold(setpoint_m),
         };

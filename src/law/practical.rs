@@ -3,7 +3,7 @@
 //!
 //! ## Outer loop: backstepping with the nominal model and a disturbance estimate
 //!
-//! With the shaped reference `(r, r', r'')` ([`crate::trajectory`]), the estimate
+//! With the shaped reference `(r, r', r'')` ([`crate::shaping`]), the estimate
 //! `(x, v, d)` from the extended-state observer ([`crate::observer`]):
 //!
 //! ```text

@@ -71,7 +71,7 @@ pub const FILTER_MAX_S: f32 = 1.0;
 
 /// Where the set point comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Source {
     /// From the link ([`crate::protocol::Command::Move`]).
     #[default]
@@ -110,7 +110,7 @@ impl Source {
 
 /// The analog set point's parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Settings {
     /// Where the set point comes from.
     pub source: Source,
@@ -192,7 +192,7 @@ fn code_at(x: f32, up: bool) -> u16 {
 
 /// A validated analog input.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     source: Source,
     m_per_code: f32,
@@ -207,7 +207,7 @@ pub struct Config {
 
 /// The filter and the wire check's memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     filtered_m: f32,
     setpoint_m: f32,

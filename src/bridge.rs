@@ -30,7 +30,7 @@ use embedded_hal::pwm::SetDutyCycle;
 
 /// Bridge mode.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Mode {
     /// Disabled, all switches open (safe state).
     #[default]
@@ -87,7 +87,7 @@ pub const BOARD_MAX_DUTY: u16 = BOARD_PWM_ARR + 1;
 
 /// What the bridge was set to.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Drive {
     /// Mode.
     pub mode: Mode,
@@ -100,7 +100,7 @@ pub struct Drive {
 
 /// A failed PWM or pin operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Error<P, O> {
     /// The PWM channel refused a duty.
     Pwm(P),

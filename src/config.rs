@@ -7,7 +7,7 @@ use core::fmt;
 
 /// A refused configuration: which parameter, its value and the reason.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Error {
     /// Dotted name of the parameter, as in the configuration files (`law.alpha2`).
     pub param: &'static str,
@@ -21,7 +21,7 @@ pub struct Error {
 /// name is held: `&'static str` here, a borrowed `&str` in the bench link's messages
 /// ([`crate::protocol::Invalid`]), one definition and one text for both.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Reason<S = &'static str> {
     /// `NaN` or infinite.
     NotFinite,

@@ -81,14 +81,14 @@ pub struct End {
 
 /// The guard's settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     max_gap: u32,
 }
 
 /// The guard's memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     last_start: Option<u32>,
     overruns: u32,
@@ -111,7 +111,7 @@ impl State {
 
 /// What a guarded tick did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Outcome {
     /// The tick's status, with the fault and the coasting bridge of a late end.
     pub status: Status,

@@ -36,7 +36,7 @@ pub const NOISE_RMS_CODES: f32 = 1.5;
 
 /// One set of simultaneous conversions, as read from the ADC.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Frame {
     /// Position sensor code.
     pub position: u16,
@@ -48,7 +48,7 @@ pub struct Frame {
 
 /// Measurements in SI units.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Measurement {
     /// Position `x1` \[m\].
     pub x_m: f32,
@@ -60,7 +60,7 @@ pub struct Measurement {
 
 /// Linear calibration and plausible window of one converter channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Channel {
@@ -133,7 +133,7 @@ impl Channel {
 
 /// Calibration of the three channels.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Calibration {

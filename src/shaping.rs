@@ -44,7 +44,7 @@ const QUINTIC_PEAK_VEL: f32 = 1.875;
 
 /// Reference-shaping parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Settings {
@@ -81,7 +81,7 @@ impl Settings {
 
 /// A validated planner.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     settings: Settings,
     envelope: Envelope,
@@ -91,7 +91,7 @@ pub struct Config {
 
 /// The move in progress.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// Set point the move goes to \[m\].
     pub target_m: f32,

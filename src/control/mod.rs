@@ -43,7 +43,7 @@ use crate::supervisor::{self, monitor, Fault, Limits, Monitors};
 
 /// Everything needed to build a controller, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Settings {
@@ -152,7 +152,7 @@ impl Settings {
 
 /// A validated controller configuration. Immutable; the tick only reads it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     ts_s: f32,
     sense: Calibration,
@@ -166,7 +166,7 @@ pub struct Config {
 
 /// The controller's mutable state.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// Observer state.
     pub observer: observer::State,
@@ -186,7 +186,7 @@ pub struct State {
 
 /// What one tick did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Status {
     /// Latched fault (the bridge coasts while there is one).
     pub fault: Option<Fault>,

@@ -46,7 +46,7 @@ use crate::model::Plant;
 
 /// The boundary-layer law, validated.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     paper: paper::Config,
     /// `1 / ((1 + 2 d) Ts)` \[1/s\].

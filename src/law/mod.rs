@@ -11,7 +11,7 @@ pub mod practical;
 
 /// Reference trajectory at the current tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Reference {
     /// Position `y_r` \[m\].
     pub x_m: f32,
@@ -35,7 +35,7 @@ impl Reference {
 
 /// What a law sees at one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Input {
     /// Position `x1` (estimate) \[m\].
     pub x_m: f32,
@@ -57,7 +57,7 @@ pub struct Input {
 
 /// What a law asks for at one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Output {
     /// Coil voltage command `u` \[V\] (before saturation to the supply).
     pub u_v: f32,
@@ -82,7 +82,7 @@ pub const NAMES: [&str; 3] = ["paper", "boundary_layer", "practical"];
 
 /// The law and its gains, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(
     feature = "serde",
@@ -134,7 +134,7 @@ impl Settings {
 
 /// The law selected by configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Config {
     /// The paper's law exactly as published ([`paper`]).
     Paper(paper::Config),
@@ -146,7 +146,7 @@ pub enum Config {
 
 /// State of the selected law.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum State {
     /// State of [`Config::Paper`] and [`Config::BoundaryLayer`].
     Paper(paper::State),

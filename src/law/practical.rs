@@ -101,7 +101,7 @@ pub const INTEGRAL: f32 = 0.05;
 
 /// Gains of the practical law.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Gains {
@@ -168,7 +168,7 @@ impl Gains {
 
 /// The practical law, validated.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     gains: Gains,
     nominal: Nominal,
@@ -204,7 +204,7 @@ impl Config {
 
 /// State of the practical law.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// Integral voltage correction `w` \[V\].
     pub w_v: f32,

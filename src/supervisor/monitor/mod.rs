@@ -93,7 +93,7 @@ use crate::sense::Calibration;
 
 /// The optional detectors.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct Monitors {
@@ -195,7 +195,7 @@ impl Monitors {
 
 /// The detectors, validated.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     monitors: Monitors,
     /// `Ts / N^2`, so that `Ts / L(g) = rho(g) Ts / N^2` needs no division.
@@ -218,7 +218,7 @@ pub struct Config {
 
 /// History the detectors keep.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// `integral of (i^2 - I_c^2) dt`, floored at 0 \[A^2 s\].
     pub i2t_a2s: f32,

@@ -12,7 +12,7 @@ pub const EMF_SPREAD: f32 = 0.5;
 
 /// Electrical residual (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Residual {

@@ -54,7 +54,7 @@ pub const MOVING_RATIO: f32 = 1.5;
 /// disturbance, and over a millisecond the armature's mass turns even an ampere of change
 /// into much less than one converter step of motion.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Stuck {

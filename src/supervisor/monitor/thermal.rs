@@ -6,7 +6,7 @@ use crate::supervisor::Fault;
 
 /// I^2 t protection of the coil.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Thermal {

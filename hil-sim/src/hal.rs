@@ -3,7 +3,7 @@
 //! firmware's window watchdog.
 //!
 //! The mock PWM and pins share their state with a [`Lines`] handle through
-//! `Rc<Cell<..>>`; the runner reads [`Lines::drive`] after each tick to know what voltage
+//! `Rc<Cell<..>>`; the runner reads [`Lines::switches`] after each tick to know what voltage
 //! the coil sees over the next period:
 //!
 //! | enable | direction | PWM on-time | PWM off-time |

@@ -53,7 +53,7 @@
 //! | [`mod@tune`] | the practical law's gains for any actuator |
 //! | [`report`] | tables, decimated sample CSV files, PNG plots |
 //! | [`cli`] | the `hil-sim` command line, one module per subcommand |
-//! | [`bench`] | a board on a bench: the `bench` tool, its link, the virtual board |
+//! | [`mod@bench`] | a board on a bench: the `bench` tool, its link, the virtual board |
 #![deny(missing_docs)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]

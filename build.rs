@@ -46,14 +46,14 @@ mod observer;
 #[path = "src/sense.rs"]
 mod sense;
 #[allow(dead_code, unused_imports, clippy::all)]
+#[path = "src/shaping.rs"]
+mod shaping;
+#[allow(dead_code, unused_imports, clippy::all)]
 #[path = "src/supervisor/mod.rs"]
 mod supervisor;
 #[allow(dead_code, unused_imports, clippy::all)]
 #[path = "src/trace.rs"]
 mod trace;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/trajectory.rs"]
-mod trajectory;
 
 use actuator::{Actuator, Board, Coil, Magnetics, Mechanics, Tolerances, Tuning};
 

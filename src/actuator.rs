@@ -49,7 +49,7 @@
 //! | residual noise, jump, open | [`NOISE_ALLOWANCE_CODES`], [`JUMP_ALLOWANCES`] and [`OPEN_ALLOWANCES`] allowances in current codes: the current channel's own resolution and noise ([`residual_detector`]) |
 //! | residual window, confirmation | half the detection deadline ([`DEADLINE_S`]) in interrupt periods; [`RESIDUAL_CONFIRM_TICKS`] ticks, from the converter's noise |
 //! | tracking error | 1/8 of the stroke, for a quarter of the settling target |
-//! | a move's settling target | the paper's 0.2 s, or 1.5 times the fastest smooth move the limits allow ([`crate::trajectory::Config::minimum_time_s`]), whichever is longer |
+//! | a move's settling target | the paper's 0.2 s, or 1.5 times the fastest smooth move the limits allow ([`crate::shaping::Config::minimum_time_s`]), whichever is longer |
 //!
 //! ```
 //! use ema::actuator::Actuator;
@@ -75,9 +75,9 @@ use crate::math;
 use crate::model::{self, Bounds, Convention, Fringing, Plant, Tolerance, MU0_H_PER_M};
 use crate::observer;
 use crate::sense::{Calibration, Channel, ADC_MAX_CODE, NOISE_RMS_CODES, RAIL_MARGIN_CODES};
+use crate::shaping;
 use crate::supervisor::monitor::{Monitors, Residual, Stuck, Thermal, Tracking};
 use crate::supervisor::{Limits, DEADLINE_S};
-use crate::trajectory;
 
 /// The armature, its spring and its stroke.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -652,7 +652,7 @@ impl Actuator {
         let c = &self.coil;
         let current_max_a = self.current_limit_a();
         let gains = law::practical::Gains::new(tuning.alpha_per_s, current_max_a);
-        let shaping = trajectory::Settings {
+        let shaping = shaping::Settings {
             accel_max_mps2: scales.authority_mps2,
             current_max_a,
             margin: tuning.margin,
@@ -693,7 +693,7 @@ impl Actuator {
         &self,
         sense: &Calibration,
         plant: &Plant,
-        shaping: &trajectory::Settings,
+        shaping: &shaping::Settings,
     ) -> Result<Monitors, Error> {
         let c = &self.coil;
         let planner = shaping.build(plant, 1.0 / self.board.rate_hz)?;

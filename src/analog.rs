@@ -71,7 +71,7 @@ pub const FILTER_MAX_S: f32 = 1.0;
 
 /// Where the set point comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Source {
     /// From the link ([`crate::protocol::Command::Move`]).
     #[default]
@@ -110,7 +110,7 @@ impl Source {
 
 /// The analog set point's parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Settings {
     /// Where the set point comes from.
     pub source: Source,
@@ -136,7 +136,7 @@ impl Settings {
     pub fn build(&self, stroke_m: f32, ts_s: f32) -> Result<Config, Error> {
         config::within("setpoint.filter_s", self.filter_s, 0.0, FILTER_MAX_S)?;
         config::positive("setpoint.stroke_m", stroke_m)?;
-        config::positive("setpoint.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         // Code -> metre: x = (code * per_code - zero) / span * stroke.
         let (per_code, zero, span) = match self.source {
             Source::Voltage | Source::Link => (VOLTAGE_V_PER_CODE, VOLTAGE_ZERO_V, VOLTAGE_SPAN_V),
@@ -192,7 +192,7 @@ fn code_at(x: f32, up: bool) -> u16 {
 
 /// A validated analog input.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     source: Source,
     m_per_code: f32,
@@ -207,7 +207,7 @@ pub struct Config {
 
 /// The filter and the wire check's memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     filtered_m: f32,
     setpoint_m: f32,

@@ -30,7 +30,7 @@ use embedded_hal::pwm::SetDutyCycle;
 
 /// Bridge mode.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Mode {
     /// Disabled, all switches open (safe state).
     #[default]
@@ -41,9 +41,53 @@ pub enum Mode {
     Reverse,
 }
 
+impl Mode {
+    /// Every mode, in code order.
+    pub const ALL: [Mode; 3] = [Mode::Coast, Mode::Forward, Mode::Reverse];
+
+    /// The mode's code in golden traces and the firmware's status snapshot.
+    #[must_use]
+    pub const fn code(self) -> u8 {
+        match self {
+            Mode::Coast => 0,
+            Mode::Forward => 1,
+            Mode::Reverse => 2,
+        }
+    }
+
+    /// The mode with `code`, if any.
+    #[must_use]
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL.iter().copied().find(|m| m.code() == code)
+    }
+
+    /// The mode's name in logs and simulator traces: `coast`, `forward`, `reverse`.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Mode::Coast => "coast",
+            Mode::Forward => "forward",
+            Mode::Reverse => "reverse",
+        }
+    }
+}
+
+/// TIM1 auto-reload of the reference board at the product's 20 kHz: a 168 MHz timer
+/// clock, center-aligned, one PWM period is `2 * 4200` counts. The firmware derives its
+/// own from its clock tree and rate (`board::PWM_ARR`) and checks that at 20 kHz it is
+/// this one.
+pub const BOARD_PWM_ARR: u16 = 4200;
+
+/// PWM full scale the bridge sees on the reference board at 20 kHz: the HAL's
+/// `max_duty_cycle` is `ARR + 1` (a compare value above ARR keeps the output on for the
+/// whole period). The golden traces ([`crate::trace`]) are recorded at this resolution.
+// 4201 fits u16 (checked by the compiler: a const overflow is an error).
+#[allow(clippy::arithmetic_side_effects)]
+pub const BOARD_MAX_DUTY: u16 = BOARD_PWM_ARR + 1;
+
 /// What the bridge was set to.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Drive {
     /// Mode.
     pub mode: Mode,
@@ -56,7 +100,7 @@ pub struct Drive {
 
 /// A failed PWM or pin operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Error<P, O> {
     /// The PWM channel refused a duty.
     Pwm(P),

@@ -7,7 +7,7 @@ use core::fmt;
 
 /// A refused configuration: which parameter, its value and the reason.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Error {
     /// Dotted name of the parameter, as in the configuration files (`law.alpha2`).
     pub param: &'static str,
@@ -21,7 +21,7 @@ pub struct Error {
 /// name is held: `&'static str` here, a borrowed `&str` in the bench link's messages
 /// ([`crate::protocol::Invalid`]), one definition and one text for both.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Reason<S = &'static str> {
     /// `NaN` or infinite.
     NotFinite,
@@ -176,6 +176,28 @@ pub fn within(param: &'static str, value: f32, min: f32, max: f32) -> Result<f32
             reason: Reason::AboveMax { max },
         })
     }
+}
+
+/// `Ok` when the measurement delay `delay_ticks` (the age of the measurements when the tick
+/// runs) is one the stages predict across: 0 or 1 sample. Every stage built with a delay
+/// checks it here.
+///
+/// # Errors
+/// [`Reason::AboveMax`] for `delay_ticks`.
+pub fn delay_ticks(delay_ticks: u8) -> Result<u8, Error> {
+    within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+    Ok(delay_ticks)
+}
+
+/// `Ok` when the sample period `ts_s` is finite and positive. Settings files give the
+/// control rate, not the period: a refusal names `rate_hz`, with the rate's value
+/// (`1 / ts_s`).
+///
+/// # Errors
+/// [`Reason::NotFinite`] or [`Reason::NotPositive`] for `rate_hz`.
+pub fn sample_period(ts_s: f32) -> Result<f32, Error> {
+    positive("rate_hz", 1.0 / ts_s)?;
+    Ok(ts_s)
 }
 
 /// `Ok` when `lo < hi` (both already checked finite by the caller).

@@ -498,7 +498,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             self.mode = Mode::Fault;
         } else if self.mode.armed() {
             self.armed_ticks = self.armed_ticks.saturating_add(1);
-            self.mode = if self.state.trajectory.moving() {
+            self.mode = if self.state.shaping.moving() {
                 Mode::Moving
             } else {
                 Mode::Armed
@@ -635,14 +635,14 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 // and, without a duration, the same arithmetic: the same bits either way.
                 let mut move_s = 0.0;
                 if let Some(shaping) = self.cfg.shaping() {
-                    if x_m != self.state.trajectory.target_m || time_s > 0.0 {
+                    if x_m != self.state.shaping.target_m || time_s > 0.0 {
                         shaping.retarget(
-                            &mut self.state.trajectory,
+                            &mut self.state.shaping,
                             self.measurement.x_m,
                             x_m,
                             time_s,
                         );
-                        move_s = self.state.trajectory.duration_s();
+                        move_s = self.state.shaping.duration_s();
                     }
                 }
                 self.start_capture_on_move(x_m, move_s);

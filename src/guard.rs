@@ -24,7 +24,7 @@
 //! differences wrap, so a gap is right as long as it is shorter than the counter's period.
 //!
 //! ```
-//! use ema::bridge::{HBridge, Mode, NullPin, NullPwm};
+//! use ema::bridge::{HBridge, Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
 //! use ema::control::{Config, Settings, State};
 //! use ema::guard::{self, End, Start};
 //! use ema::sense::Measurement;
@@ -41,7 +41,7 @@
 //!
 //! let cfg = Settings::practical(20_000.0, 24.0).unwrap().build().unwrap();
 //! let mut st = cfg.initial_state();
-//! let mut b: Bridge = HBridge::new(NullPwm::new(4200), NullPin(false), NullPin(false)).unwrap();
+//! let mut b: Bridge = HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
 //! let mut g = guard::State::default();
 //! // On time: fed.
 //! assert!(tick(&mut g, &cfg, &mut st, &mut b, 0).feed);
@@ -81,14 +81,14 @@ pub struct End {
 
 /// The guard's settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     max_gap: u32,
 }
 
 /// The guard's memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     last_start: Option<u32>,
     overruns: u32,
@@ -111,7 +111,7 @@ impl State {
 
 /// What a guarded tick did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Outcome {
     /// The tick's status, with the fault and the coasting bridge of a late end.
     pub status: Status,
@@ -299,7 +299,7 @@ impl Watchdog {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bridge::{Mode, NullPin, NullPwm};
+    use crate::bridge::{Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
     use crate::control::Settings;
     use crate::sense::Measurement;
 
@@ -325,7 +325,8 @@ mod tests {
                 g: State::default(),
                 st: cfg.initial_state(),
                 cfg,
-                b: HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap(),
+                b: HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false))
+                    .unwrap(),
             }
         }
 

@@ -19,7 +19,7 @@
 //! | [`model`] | reluctance network with flux fringing, `rho`, `L`, `mu` and their bounds |
 //! | [`sense`] | raw ADC codes to SI measurements, plausibility |
 //! | [`observer`] | velocity (and a force disturbance) from the sampled position |
-//! | [`trajectory`] | reference shaping within the actuator's force limits |
+//! | [`shaping`] | the reference: set points shaped within the actuator's force limits |
 //! | [`law`] | the control laws: the paper's law and the practical variants |
 //! | [`supervisor`] | limits, latched faults, safe state |
 //! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
@@ -132,7 +132,7 @@ pub mod observer;
 pub mod params;
 pub mod protocol;
 pub mod sense;
+pub mod shaping;
 pub mod store;
 pub mod supervisor;
 pub mod trace;
-pub mod trajectory;

@@ -34,7 +34,7 @@ pub const MU0_H_PER_M: f32 = 1.256_637_1e-6;
 
 /// What the position coordinate `x1` means.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(
     feature = "serde",
@@ -86,7 +86,7 @@ impl Convention {
 
 /// How the airgap surface `S(g)` seen by the flux depends on the gap (paper, section II-B).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(
     feature = "serde",
@@ -136,7 +136,7 @@ impl Fringing {
 
 /// The magnetic circuit: coil, iron path and airgaps.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Magnetics {
@@ -260,7 +260,7 @@ fn force_coefficient(n2: f32, rho_x: f32, rho0: f32, g_m: f32) -> f32 {
 
 /// Bounds on the airgap surface, `S_lo <= S(g) <= S_hi` for every gap of the stroke \[m^2\].
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Bounds {
@@ -322,7 +322,7 @@ impl Bounds {
 /// `mu_hi`) whenever `g > rho_0 / rho_x_lo` (about 27 nm for the paper's actuator), and stay
 /// correct below it, where `mu` is no longer monotone in `rho_x`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Envelope {
     n2: f32,
     rho0: f32,
@@ -440,7 +440,7 @@ impl Envelope {
 /// A reluctance network with a constant `rho_x`: the model a controller evaluates at run
 /// time. [`Envelope::nominal`] gives the one at the centre of the surface bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Nominal {
     n2: f32,
     rho0: f32,
@@ -479,7 +479,7 @@ impl Nominal {
 /// Relative uncertainty of the mechanical and electrical parameters (the airgap surfaces
 /// have their own [`Bounds`]): the true value lies within `nominal * (1 +- tolerance)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Tolerance {
@@ -544,7 +544,7 @@ impl Default for Tolerance {
 
 /// The dynamics a controller evaluates at run time: mechanics and the force map.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Dynamics {
     /// Moving mass \[kg\].
     pub mass_kg: f32,
@@ -590,7 +590,7 @@ impl Dynamics {
 /// The nominal actuator as the controller knows it: mechanics, coil, magnetic circuit,
 /// uncertainty bounds, position convention and stroke.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Plant {

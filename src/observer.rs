@@ -50,7 +50,7 @@ use crate::model::{Dynamics, Plant};
 
 /// Which model of the actuator the observer predicts with.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Model {
@@ -64,7 +64,7 @@ pub enum Model {
 
 /// Observer design parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Gains {
@@ -95,8 +95,8 @@ impl Gains {
             Model::Nominal => plant.nominal_dynamics()?,
             Model::Robust => plant.robust_dynamics()?,
         };
-        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
-        config::positive("observer.ts_s", ts_s)?;
+        config::delay_ticks(delay_ticks)?;
+        config::sample_period(ts_s)?;
         config::positive("observer.bandwidth_rad_s", self.bandwidth_rad_s)?;
         config::at_least(
             "observer.force_scaled_above_a",
@@ -143,7 +143,7 @@ impl Gains {
 
 /// A built observer.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     gains: Gains,
     force_floor_n: f32,
@@ -158,7 +158,7 @@ pub struct Config {
 
 /// Observer state: the prediction for the next sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// Predicted position \[m\] (rounded to `f32`).
     pub x_m: f32,
@@ -177,7 +177,7 @@ pub struct State {
 
 /// The observer's estimate at the current sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Estimate {
     /// Position \[m\].
     pub x_m: f32,
@@ -424,5 +424,15 @@ mod tests {
         .build(&Plant::paper(), TS, 0)
         .unwrap_err();
         assert_eq!(e.param, "observer.bandwidth_rad_s");
+        // A period that no rate gives is refused as the rate settings files contain.
+        let e = Gains {
+            bandwidth_rad_s: 100.0,
+            disturbance: false,
+            model: Model::Nominal,
+            force_scaled_above_a: 0.0,
+        }
+        .build(&Plant::paper(), -TS, 0)
+        .unwrap_err();
+        assert_eq!((e.param, e.value), ("rate_hz", -1.0 / TS));
     }
 }

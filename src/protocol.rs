@@ -331,7 +331,7 @@ impl fmt::Display for Invalid<'_> {
 
 /// The board's operating state.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Mode {
     /// Bridge coasting, sensors read, nothing driven (the state after every start).
     #[default]

@@ -36,7 +36,7 @@ pub const NOISE_RMS_CODES: f32 = 1.5;
 
 /// One set of simultaneous conversions, as read from the ADC.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Frame {
     /// Position sensor code.
     pub position: u16,
@@ -48,7 +48,7 @@ pub struct Frame {
 
 /// Measurements in SI units.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Measurement {
     /// Position `x1` \[m\].
     pub x_m: f32,
@@ -60,7 +60,7 @@ pub struct Measurement {
 
 /// Linear calibration and plausible window of one converter channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Channel {
@@ -110,7 +110,8 @@ impl Channel {
         &self,
         name: &'static str,
         scale_name: &'static str,
-        window_name: &'static str,
+        min_name: &'static str,
+        max_name: &'static str,
     ) -> Result<(), Error> {
         config::within(name, self.offset_code, 0.0, f32::from(ADC_MAX_CODE))?;
         config::finite(scale_name, self.scale)?;
@@ -122,9 +123,9 @@ impl Channel {
             });
         }
         config::ordered(
-            window_name,
+            min_name,
             f32::from(self.min_code),
-            window_name,
+            max_name,
             f32::from(self.max_code),
         )
     }
@@ -132,7 +133,7 @@ impl Channel {
 
 /// Calibration of the three channels.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Calibration {
@@ -197,16 +198,19 @@ impl Calibration {
             "sense.position.offset_code",
             "sense.position.scale",
             "sense.position.min_code",
+            "sense.position.max_code",
         )?;
         self.current.validate(
             "sense.current.offset_code",
             "sense.current.scale",
             "sense.current.min_code",
+            "sense.current.max_code",
         )?;
         self.vbus.validate(
             "sense.vbus.offset_code",
             "sense.vbus.scale",
             "sense.vbus.min_code",
+            "sense.vbus.max_code",
         )
     }
 
@@ -319,6 +323,18 @@ mod tests {
         assert_eq!(
             cal.with_current_zero(2051.5).unwrap().current.offset_code,
             2051.5
+        );
+        // An inverted window names both of its fields.
+        let mut cal = Calibration::board();
+        cal.vbus.max_code = cal.vbus.min_code;
+        let e = cal.validate().unwrap_err();
+        assert_eq!(e.param, "sense.vbus.min_code");
+        assert_eq!(
+            e.reason,
+            config::Reason::NotBelow {
+                other: "sense.vbus.max_code",
+                limit: f32::from(cal.vbus.min_code),
+            }
         );
     }
 }

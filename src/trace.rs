@@ -36,7 +36,7 @@
 //! | 15 | 4 | output: voltage applied by the bridge \[V\] ([`crate::bridge::Drive::u_v`]), `f32` bits |
 //! | 19 | 4 | output: desired current \[A\] ([`crate::law::Output::i_d_a`]), `f32` bits |
 //! | 23 | 2 | output: PWM duty code |
-//! | 25 | 1 | output: bridge mode (0 coast, 1 forward, 2 reverse) |
+//! | 25 | 1 | output: bridge mode ([`crate::bridge::Mode::code`]: 0 coast, 1 forward, 2 reverse) |
 //! | 26 | 1 | output: latched fault code ([`Fault::code`]), 0 for none |
 //!
 //! Every `NaN` is stored as [`CANONICAL_NAN`]: NaN payloads legitimately differ between
@@ -64,7 +64,7 @@ use core::fmt;
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
-use crate::bridge::{HBridge, Mode};
+use crate::bridge::HBridge;
 use crate::control::{Config, Settings, State, Status};
 use crate::sense::Frame;
 use crate::supervisor::Fault;
@@ -115,20 +115,20 @@ fn practical_20khz_24v() -> Result<Settings, crate::config::Error> {
     Settings::practical(20_000.0, 24.0)
 }
 
-/// The reference configurations, one per law variant of [`crate::law::Settings`]. Golden
+/// The reference configurations, one per law of [`crate::law::NAMES`], in its order. Golden
 /// traces, the bit-exactness checks and the per-law instruction counts on the Cortex-M4F
 /// all iterate over this list; a new law gets its entry here.
 pub const CASES: &[Case] = &[
     Case {
-        name: "paper",
+        name: crate::law::NAMES[0],
         settings: paper_20khz_24v,
     },
     Case {
-        name: "boundary_layer",
+        name: crate::law::NAMES[1],
         settings: boundary_layer_20khz_24v,
     },
     Case {
-        name: "practical",
+        name: crate::law::NAMES[2],
         settings: practical_20khz_24v,
     },
 ];
@@ -270,7 +270,7 @@ pub struct Output {
     pub i_d: u32,
     /// PWM duty code.
     pub duty: u16,
-    /// Bridge mode code (0 coast, 1 forward, 2 reverse).
+    /// Bridge mode ([`crate::bridge::Mode::code`]).
     pub mode: u8,
     /// Latched fault code, 0 for none.
     pub fault: u8,
@@ -286,16 +286,6 @@ pub fn bits(x: f32) -> u32 {
     }
 }
 
-/// The code of a bridge mode in a trace.
-#[must_use]
-pub const fn mode_code(mode: Mode) -> u8 {
-    match mode {
-        Mode::Coast => 0,
-        Mode::Forward => 1,
-        Mode::Reverse => 2,
-    }
-}
-
 impl Output {
     /// The outputs of a tick.
     #[must_use]
@@ -305,7 +295,7 @@ impl Output {
             u_applied: bits(status.drive.u_v),
             i_d: bits(status.output.i_d_a),
             duty: status.drive.duty,
-            mode: mode_code(status.drive.mode),
+            mode: status.drive.mode.code(),
             fault: status.fault.map_or(0, Fault::code),
         }
     }
@@ -636,7 +626,7 @@ const fn len_u16(n: usize) -> u16 {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::bridge::{HBridge, NullPin, NullPwm};
+    use crate::bridge::{HBridge, NullPin, NullPwm, BOARD_MAX_DUTY};
     use std::vec::Vec;
 
     /// A short trace of `case` with a position ramp (re-armed after every fault the
@@ -645,8 +635,9 @@ mod tests {
         let settings = (case.settings)().unwrap();
         let cfg = settings.build().unwrap();
         let mut st = cfg.initial_state();
-        let mut b = HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap();
-        let mut out = Vec::from(Header::new(case, &settings, &cfg, 4201, ticks).encode());
+        let mut b =
+            HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
+        let mut out = Vec::from(Header::new(case, &settings, &cfg, BOARD_MAX_DUTY, ticks).encode());
         let mut tripped = false;
         for k in 0..u16::try_from(ticks).unwrap() {
             let rail = u32::from(k) + 3 >= ticks;
@@ -667,7 +658,7 @@ mod tests {
     #[test]
     fn layouts_fill_their_arrays_and_round_trip() {
         let h = Header {
-            max_duty: 4201,
+            max_duty: BOARD_MAX_DUTY,
             ticks: 7,
             settings_hash: 0x0123_4567_89ab_cdef,
             case: Name::new("paper"),
@@ -692,7 +683,7 @@ mod tests {
                 u_cmd: 0xdead_beef,
                 u_applied: 1,
                 i_d: 2,
-                duty: 4201,
+                duty: BOARD_MAX_DUTY,
                 mode: 2,
                 fault: 15,
             },
@@ -745,8 +736,9 @@ mod tests {
     fn replay_finds_the_first_flipped_bit() {
         let mut t = make(&CASES[0], 40);
         let (trace, _, cfg) = open(&t).unwrap();
-        assert_eq!(trace.header().max_duty, 4201);
-        let mut b = HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap();
+        assert_eq!(trace.header().max_duty, BOARD_MAX_DUTY);
+        let mut b =
+            HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
         assert_eq!(replay(&trace, &cfg, &mut b), Ok(40));
         // The synthetic codes trip the monitors: the trace re-arms, and the replay follows.
         assert!(trace.records().filter(|r| r.input.rearm).count() > 0);
@@ -756,7 +748,8 @@ mod tests {
         // Flip the lowest bit of the desired current of tick 17.
         t[HEADER_LEN + 17 * RECORD_LEN + 19] ^= 1;
         let (trace, _, cfg) = open(&t).unwrap();
-        let mut b = HBridge::new(NullPwm::new(4201), NullPin(false), NullPin(false)).unwrap();
+        let mut b =
+            HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
         let m = replay(&trace, &cfg, &mut b).unwrap_err();
         assert_eq!((m.tick, m.field), (17, "i_d"));
         assert_eq!(m.expected ^ m.actual, 1);

@@ -19,7 +19,7 @@ impl embedded_hal::pwm::ErrorType for Pwm {
 }
 impl embedded_hal::pwm::SetDutyCycle for Pwm {
     fn max_duty_cycle(&self) -> u16 {
-        4201
+        ema::bridge::BOARD_MAX_DUTY
     }
     fn set_duty_cycle(&mut self, _: u16) -> Result<(), Infallible> {
         Ok(())

@@ -22,21 +22,22 @@
 
 #[macro_use]
 mod common;
+use ema::bridge::BOARD_MAX_DUTY;
 
 use core::hint::black_box;
 
 use common::plant::Plant;
-use common::{min_median_max, Bridge, Counter, FIRMWARE_MAX_DUTY};
+use common::{min_median_max, Bridge, Counter};
 use cortex_m_rt::entry;
 use ema::bridge::Drive;
 use ema::control::{Config, State, Status};
 use ema::law::{self, Law, Reference};
 use ema::observer;
 use ema::sense::{Frame, Measurement};
-use ema::supervisor::monitor::{self, MonitorState};
+use ema::shaping;
+use ema::supervisor::monitor;
 use ema::supervisor::Fault;
 use ema::trace::CASES;
-use ema::trajectory;
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
@@ -91,8 +92,8 @@ fn limits(cfg: &Config, m: &Measurement) -> Option<Fault> {
 
 /// The tick's reference shaping step (control::Config::step does the same).
 #[inline(never)]
-fn shape(cfg: &Config, st: &mut trajectory::State, x_m: f32, setpoint_m: f32) -> Reference {
-    let stroke = cfg.limits().position_max_m / 1.1;
+fn shape(cfg: &Config, st: &mut shaping::State, x_m: f32, setpoint_m: f32) -> Reference {
+    let stroke = cfg.stroke_m();
     let setpoint_m = ema::math::clamp(setpoint_m, 0.0, stroke);
     match cfg.shaping() {
         Some(shaping) => {
@@ -109,7 +110,7 @@ fn shape(cfg: &Config, st: &mut trajectory::State, x_m: f32, setpoint_m: f32) ->
 #[inline(never)]
 fn monitor(
     cfg: &Config,
-    st: &mut MonitorState,
+    st: &mut monitor::State,
     inputs: &monitor::Inputs,
     d: &Drive,
 ) -> Option<Fault> {
@@ -168,8 +169,8 @@ fn main() -> ! {
             Err(e) => common::fail(format_args!("{}: settings do not build: {}", case.name, e)),
         };
         let mut st = cfg.initial_state();
-        let mut b = common::bridge(FIRMWARE_MAX_DUTY);
-        let mut b2 = common::bridge(FIRMWARE_MAX_DUTY);
+        let mut b = common::bridge(BOARD_MAX_DUTY);
+        let mut b2 = common::bridge(BOARD_MAX_DUTY);
         let mut plant = Plant::new(&settings, 1e-3, 24.0);
         let (mut running, mut tripped, mut tripped_max) = (0usize, 0u32, 0u32);
         let mut first_fault = None;
@@ -221,7 +222,7 @@ fn main() -> ! {
             counts.stages[1][n] = t1.wrapping_sub(t0).wrapping_sub(overhead);
             ensure!(l.is_none(), "{} tick {}: limits alone trip", case.name, k);
 
-            let mut traj = before.trajectory;
+            let mut traj = before.shaping;
             let t0 = ctr.now();
             let r = shape(
                 black_box(&cfg),

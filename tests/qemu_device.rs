@@ -10,9 +10,10 @@
 
 #[macro_use]
 mod common;
+use ema::bridge::BOARD_MAX_DUTY;
 
 use common::session::{Session, FRAMES_HASH, FRAMES_LEN};
-use common::{Counter, FIRMWARE_MAX_DUTY};
+use common::Counter;
 use cortex_m_rt::entry;
 use ema::device::Queues;
 
@@ -39,8 +40,8 @@ fn main() -> ! {
     let mut q = Queues::new();
     let (main, isr) = q.split();
     let bridges = (
-        common::bridge(FIRMWARE_MAX_DUTY),
-        common::bridge(FIRMWARE_MAX_DUTY),
+        common::bridge(BOARD_MAX_DUTY),
+        common::bridge(BOARD_MAX_DUTY),
     );
     let s = match Session::new(main, isr, bridges.0, bridges.1) {
         Ok(s) => s,

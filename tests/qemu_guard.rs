@@ -26,12 +26,13 @@
 
 #[macro_use]
 mod common;
+use ema::bridge::BOARD_MAX_DUTY;
 
 use core::cell::RefCell;
 use core::hint::black_box;
 
 use common::plant::Plant;
-use common::{min_median_max, Bridge, Counter, FIRMWARE_MAX_DUTY};
+use common::{min_median_max, Bridge, Counter};
 use cortex_m::interrupt::{self, Mutex};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::{SCB, SYST};
@@ -186,7 +187,7 @@ fn run(syst: &mut SYST, settings: &Settings, event: Event, target: u32, late: bo
     let r = Run {
         cfg,
         state: cfg.initial_state(),
-        bridge: common::bridge(FIRMWARE_MAX_DUTY),
+        bridge: common::bridge(BOARD_MAX_DUTY),
         plant: Plant::new(settings, 1e-3, 24.0),
         ctr: Counter::start(),
         guard: guard::Config::for_period(PERIOD_NS),
@@ -408,8 +409,8 @@ fn guard_cost(settings: &Settings) {
     let mut g = guard::State::default();
     let (mut st1, mut st2) = (cfg.initial_state(), cfg.initial_state());
     let (mut b1, mut b2) = (
-        common::bridge(FIRMWARE_MAX_DUTY),
-        common::bridge(FIRMWARE_MAX_DUTY),
+        common::bridge(BOARD_MAX_DUTY),
+        common::bridge(BOARD_MAX_DUTY),
     );
     let mut plant = Plant::new(settings, 1e-3, 24.0);
     let mut guarded = [0u32; COST_TICKS];

@@ -17,11 +17,12 @@
 
 #[macro_use]
 mod common;
+use ema::bridge::BOARD_MAX_DUTY;
 
 use core::cell::RefCell;
 
 use common::plant::Plant;
-use common::{Bridge, Counter, FIRMWARE_MAX_DUTY};
+use common::{Bridge, Counter};
 use cortex_m::interrupt::{self, Mutex};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SCB;
@@ -139,7 +140,7 @@ fn run(
     let r = Run {
         cfg,
         state: cfg.initial_state(),
-        bridge: common::bridge(FIRMWARE_MAX_DUTY),
+        bridge: common::bridge(BOARD_MAX_DUTY),
         plant: Plant::new(settings, 1e-3, 24.0),
         ctr: Counter::start(),
         target,

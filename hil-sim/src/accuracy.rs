@@ -23,7 +23,7 @@
 //! (`1/alpha`, some hundred periods), so the trajectory's error stays within a few hundred
 //! times the one-period error, which [`TOLERANCE_REL`] bounds.
 
-use crate::hal::Drive;
+use crate::hal::Switches;
 use crate::scenario::{BridgeMode, Scenario, Sensors};
 use crate::sim::{run, Stepper};
 use crate::Error;
@@ -76,8 +76,8 @@ impl Accuracy {
 #[derive(Clone, Debug)]
 pub struct Reference {
     scenario: Scenario,
-    drives: Vec<Drive>,
-    trace: Vec<crate::Sample>,
+    drives: Vec<Switches>,
+    samples: Vec<crate::Sample>,
     peak_a: f64,
     stroke_m: f64,
 }
@@ -108,16 +108,16 @@ impl Reference {
             .with_substeps(reference_substeps(scenario.rate_hz()));
         let r = run(&sc)?;
         let drives = r
-            .trace
+            .samples
             .iter()
-            .map(|s| Drive::from_mode(s.mode, s.duty, sc.bridge.max_duty))
+            .map(|s| Switches::from_mode(s.mode, s.duty, sc.bridge.max_duty))
             .collect();
         Ok(Self {
             peak_a: r.metrics.i_peak_a,
             stroke_m: r.plant.stroke_m,
             scenario: sc,
             drives,
-            trace: r.trace,
+            samples: r.samples,
         })
     }
 
@@ -134,8 +134,8 @@ impl Reference {
         for (k, ((d, now), next)) in self
             .drives
             .iter()
-            .zip(&self.trace)
-            .zip(self.trace.iter().skip(1))
+            .zip(&self.samples)
+            .zip(self.samples.iter().skip(1))
             .enumerate()
         {
             st.resync(k as u64, now);

@@ -24,7 +24,7 @@
 use std::path::Path;
 
 use ema::actuator::{Actuator, SETTLING_CLAIM_S, SETTLING_PER_MINIMUM_MOVE};
-use ema::trajectory;
+use ema::shaping;
 
 use crate::catalog::LoadError;
 use crate::hal::{Adc, Supply};
@@ -284,7 +284,7 @@ pub fn tuned_text(text: &str, tuning: &ema::actuator::Tuning, note: &str) -> Str
 
 /// The shaping planner of `settings`, if any.
 #[must_use]
-pub fn planner(settings: &ema::control::Settings) -> Option<trajectory::Config> {
+pub fn planner(settings: &ema::control::Settings) -> Option<shaping::Config> {
     settings
         .shaping?
         .build(&settings.plant, 1.0 / settings.rate_hz)

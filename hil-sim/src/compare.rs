@@ -22,8 +22,8 @@ use crate::hal;
 use crate::targets::{Targets, Worst};
 use crate::{run, Scenario};
 
-/// The laws compared.
-pub const LAWS: [&str; 3] = ["paper", "boundary_layer", "practical"];
+/// The laws compared: every law of the core.
+pub const LAWS: [&str; 3] = ema::law::NAMES;
 /// The ISR rates \[Hz\].
 pub const RATES_HZ: [f64; 3] = [10e3, 20e3, 50e3];
 /// The supplies \[V\].

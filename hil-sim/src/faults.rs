@@ -126,7 +126,7 @@ pub fn cases(base: &Scenario) -> Result<Vec<Case>, Error> {
     let move_s = planned_move_s(&base.controller, *initial_m, first.to_m);
     let healthy = crate::run(&base.clone().with_duration_s(first.at_s + move_s))?;
     let ramping = healthy
-        .trace
+        .samples
         .windows(2)
         .filter(|w| w[0].t_s >= first.at_s)
         .max_by(|a, b| {
@@ -280,15 +280,15 @@ fn planned_move_s(settings: &ema::control::Settings, x0_m: f64, x1_m: f64) -> f6
 pub fn evaluate(case: &Case) -> Result<Outcome, Error> {
     let r = run(&case.scenario)?;
     let first = r
-        .trace
+        .samples
         .iter()
         .position(|s| s.fault.is_some())
-        .and_then(|k| r.trace.get(k).map(|s| (k, s)));
+        .and_then(|k| r.samples.get(k).map(|s| (k, s)));
     let (fault, detected_after_s, coasting) = match first {
         Some((k, s)) => (
             s.fault,
             Some(s.t_s - case.at_s),
-            r.trace.iter().skip(k).all(|s| s.mode == Mode::Coast),
+            r.samples.iter().skip(k).all(|s| s.mode == Mode::Coast),
         ),
         None => (None, None, true),
     };

@@ -6,7 +6,7 @@
 //! One trace per reference case of `ema::trace::CASES` (every law variant), each on the
 //! product's realistic conditions: a plant drawn from the uncertainty set (fixed seed),
 //! converter noise and one sample of delay, a 24 V supply with its internal resistance,
-//! the firmware's PWM resolution (TIM1 at 20 kHz from 168 MHz: 4201 counts), the product's
+//! the firmware's PWM resolution (TIM1 at 20 kHz from 168 MHz: [`BOARD_MAX_DUTY`], 4201 counts), the product's
 //! sequence of steps, a re-arm at the tick after any latched fault (the paper's law trips
 //! its current checks every few ticks at 20 kHz), and at the end the current sensor on its
 //! rail, so that the trace also covers the fault path. 10 000 ticks (0.5 s): three traces
@@ -17,6 +17,7 @@
 
 use std::path::Path;
 
+use ema::bridge::BOARD_MAX_DUTY;
 use ema::trace::{Case, Header, CASES, MIN_GOLDEN_TICKS};
 
 use crate::error::Error;
@@ -26,8 +27,6 @@ use crate::sim::{run_with, Recording};
 
 /// Ticks per trace.
 pub const TICKS: usize = 10_000;
-/// PWM full scale of the firmware's TIM1 (ARR + 1 at 20 kHz centre-aligned, 168 MHz).
-pub const MAX_DUTY: u16 = 4201;
 /// Seed of the drawn plant and of the converter noise.
 pub const SEED: u64 = 2026;
 
@@ -66,7 +65,7 @@ pub fn scenario(case: &Case) -> Result<Scenario, Error> {
         .with_fault(duration_s - 40.0 / rate_hz, Injected::PositionShorted);
     sc.name = format!("golden-{}", case.name);
     sc.controller = settings;
-    sc.bridge.max_duty = MAX_DUTY;
+    sc.bridge.max_duty = BOARD_MAX_DUTY;
     sc.sensors = Sensors::Adc(Adc {
         delay_samples: u32::from(settings.delay_ticks),
         seed: SEED,
@@ -96,7 +95,7 @@ pub fn generate(case: &Case) -> Result<Vec<u8>, Error> {
             format!("a golden trace needs at least {MIN_GOLDEN_TICKS} ticks"),
         ));
     }
-    let mut bytes = Header::new(case, &sc.controller, &cfg, MAX_DUTY, ticks)
+    let mut bytes = Header::new(case, &sc.controller, &cfg, BOARD_MAX_DUTY, ticks)
         .encode()
         .to_vec();
     for r in &rec.records {

@@ -3,7 +3,7 @@
 //! firmware's window watchdog.
 //!
 //! The mock PWM and pins share their state with a [`Lines`] handle through
-//! `Rc<Cell<..>>`; the runner reads [`Lines::drive`] after each tick to know what voltage
+//! `Rc<Cell<..>>`; the runner reads [`Lines::switches`] after each tick to know what voltage
 //! the coil sees over the next period:
 //!
 //! | enable | direction | PWM on-time | PWM off-time |
@@ -96,9 +96,10 @@ pub struct Lines {
     max_duty: u16,
 }
 
-/// What the bridge does with the lines as they are.
+/// What the bridge's switches do with the lines as they are (the core's
+/// [`ema::bridge::Drive`] is what the tick set the bridge to; this is what the plant sees).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Drive {
+pub enum Switches {
     /// Enable low: all switches open.
     Coast,
     /// Enable high.
@@ -110,19 +111,19 @@ pub enum Drive {
     },
 }
 
-impl Drive {
+impl Switches {
     /// The drive a bridge in `mode` with compare value `duty` out of `max_duty` produces
     /// (for replaying a recorded trace).
     #[must_use]
     pub fn from_mode(mode: ema::bridge::Mode, duty: u16, max_duty: u16) -> Self {
         let fraction = f64::from(duty.min(max_duty)) / f64::from(max_duty.max(1));
         match mode {
-            ema::bridge::Mode::Coast => Drive::Coast,
-            ema::bridge::Mode::Forward => Drive::Driven {
+            ema::bridge::Mode::Coast => Switches::Coast,
+            ema::bridge::Mode::Forward => Switches::Driven {
                 forward: true,
                 fraction,
             },
-            ema::bridge::Mode::Reverse => Drive::Driven {
+            ema::bridge::Mode::Reverse => Switches::Driven {
                 forward: false,
                 fraction,
             },
@@ -131,16 +132,16 @@ impl Drive {
 }
 
 impl Lines {
-    /// The drive the lines select.
+    /// The switch state the lines select.
     #[must_use]
-    pub fn drive(&self) -> Drive {
+    pub fn switches(&self) -> Switches {
         if self.enable.get() {
-            Drive::Driven {
+            Switches::Driven {
                 forward: self.direction.get(),
                 fraction: f64::from(self.duty.get()) / f64::from(self.max_duty.max(1)),
             }
         } else {
-            Drive::Coast
+            Switches::Coast
         }
     }
 
@@ -522,11 +523,11 @@ mod tests {
     fn the_core_bridge_drives_the_mock_lines() {
         let (pwm, dir, en, lines) = bridge_io(1000);
         let mut b = HBridge::new(pwm, dir, en).unwrap();
-        assert_eq!(lines.drive(), Drive::Coast);
+        assert_eq!(lines.switches(), Switches::Coast);
         b.apply(12.0, 24.0).unwrap();
         assert_eq!(
-            lines.drive(),
-            Drive::Driven {
+            lines.switches(),
+            Switches::Driven {
                 forward: true,
                 fraction: 0.5
             }
@@ -534,15 +535,15 @@ mod tests {
         b.apply(-30.0, 24.0).unwrap();
         assert_eq!(b.mode(), Mode::Reverse);
         assert_eq!(
-            lines.drive(),
-            Drive::Driven {
+            lines.switches(),
+            Switches::Driven {
                 forward: false,
                 fraction: 1.0
             }
         );
         assert_eq!(lines.duty(), 1000);
         b.coast().unwrap();
-        assert_eq!(lines.drive(), Drive::Coast);
+        assert_eq!(lines.switches(), Switches::Coast);
     }
 
     #[test]

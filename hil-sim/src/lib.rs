@@ -5,7 +5,7 @@
 //! ADC codes from a converter model, [`hal`]), the core's own `Config::tick` runs exactly
 //! as in the firmware, and drives the core's `HBridge` over mock `embedded-hal` PWM and pins
 //! whose state sets the coil voltage, period-averaged or pulse by pulse. A [`Scenario`]
-//! says what to simulate; [`run`] returns the trace and the [`Metrics`]; [`montecarlo()`]
+//! says what to simulate; [`run`] returns the samples (one per ISR period) and the [`Metrics`]; [`montecarlo()`]
 //! repeats a scenario over plants drawn from the uncertainty set.
 //!
 //! The controller is only ever reached through `ema::control::Settings` ->
@@ -39,9 +39,21 @@
 //! | [`plant`] | true actuator: conventions, frozen / energy-consistent fringing, end stops, saturation, RK4 |
 //! | [`hal`] | mock PWM and pins, supply, converter model, calibrations |
 //! | [`scenario`] | scenario, reference, sensors, bridge, integration, uncertainty set |
-//! | [`sim`] | the closed loop and its trace |
+//! | [`sim`] | the closed loop and its samples |
 //! | [`metrics`] | metrics definitions and the bounds check |
 //! | [`mod@montecarlo`] | parallel, seeded runs over drawn plants |
+//! | [`accuracy`] | how many RK4 substeps per ISR period a scenario needs, measured |
+//! | [`actuator`] | actuator files: the family in the repository, loading, tuned files |
+//! | [`catalog`] | scenario files: the embedded defaults, loading by name or from a file |
+//! | [`compare`] | the comparison of the laws over ISR rates and supplies |
+//! | [`faults`] | fault injection: the fault the supervisor must name, and how fast |
+//! | [`golden`] | golden traces for the Cortex-M4F (`ema::trace` format) |
+//! | [`lyapunov`] | Theorem 1 with a general Lyapunov matrix |
+//! | [`targets`] | the product's performance targets and their evaluation |
+//! | [`mod@tune`] | the practical law's gains for any actuator |
+//! | [`report`] | tables, decimated sample CSV files, PNG plots |
+//! | [`cli`] | the `hil-sim` command line, one module per subcommand |
+//! | [`mod@bench`] | a board on a bench: the `bench` tool, its link, the virtual board |
 #![deny(missing_docs)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]

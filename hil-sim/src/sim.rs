@@ -15,13 +15,13 @@
 //! firmware then resets and starts with the overrun latched, which is what the run
 //! records).
 
-use ema::bridge::{Drive as BridgeDrive, HBridge, Mode};
+use ema::bridge::{Drive, HBridge, Mode};
 use ema::guard::{self, End, Start};
 use ema::sense::Measurement;
 use ema::supervisor::Fault;
 use serde::{Deserialize, Serialize};
 
-use crate::hal::{self, Drive, Supply};
+use crate::hal::{self, Supply, Switches};
 use crate::metrics::{self, Metrics};
 use crate::plant::{Impact, Input, Params, State};
 use crate::scenario::{BridgeMode, Injected, Scenario, Sensors};
@@ -97,8 +97,8 @@ pub struct ImpactAt {
 /// The result of one run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Run {
-    /// One sample per ISR period.
-    pub trace: Vec<Sample>,
+    /// One sample per ISR period (the simulation's record, not a golden trace).
+    pub samples: Vec<Sample>,
     /// End-stop impacts.
     pub impacts: Vec<ImpactAt>,
     /// The true plant that was simulated.
@@ -111,8 +111,8 @@ impl Run {
     /// The sample at or just before `t_s` (the first one before the run starts).
     #[must_use]
     pub fn sample_at(&self, t_s: f64) -> Option<&Sample> {
-        let k = self.trace.partition_point(|s| s.t_s <= t_s);
-        self.trace.get(k.saturating_sub(1))
+        let k = self.samples.partition_point(|s| s.t_s <= t_s);
+        self.samples.get(k.saturating_sub(1))
     }
 }
 
@@ -179,7 +179,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
         Sensors::Ideal => None,
         Sensors::Adc(adc) => Some(adc.start(config.sense())),
     };
-    let mut trace = Vec::with_capacity(n);
+    let mut samples = Vec::with_capacity(n);
     let mut faults = scenario.faults.clone();
     faults.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
     let mut faults = faults.into_iter().peekable();
@@ -217,7 +217,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
             missed -= 1;
             if watchdog.bitten(now_ns) && last.fault.is_none() {
                 last.fault = Some(config.trip(&mut ctl, &mut bridge, Fault::Overrun));
-                last.drive = BridgeDrive::default();
+                last.drive = Drive::default();
             }
             last
         } else {
@@ -271,8 +271,8 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
             outcome.status
         };
         last = status;
-        let period = stepper.advance(lines.drive(), scenario.bridge.mode);
-        trace.push(Sample {
+        let period = stepper.advance(lines.switches(), scenario.bridge.mode);
+        samples.push(Sample {
             t_s: now.t_s,
             r_m: r,
             x_m: now.x_m,
@@ -300,9 +300,9 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
         });
     }
     let (plant, impacts) = stepper.finish();
-    let metrics = metrics::compute(scenario, bounds, &trace, &impacts);
+    let metrics = metrics::compute(scenario, bounds, &samples, &impacts);
     Ok(Run {
-        trace,
+        samples,
         impacts,
         plant,
         metrics,
@@ -390,7 +390,7 @@ pub struct Period {
 }
 
 /// The plant side of the loop, without a controller: the true plant, the supply and the
-/// bridge, advanced one ISR period at a time under a given [`Drive`]. [`run`] uses it
+/// bridge, advanced one ISR period at a time under a given [`Switches`]. [`run`] uses it
 /// between ticks; it is public for open-loop replays (integrator convergence, golden
 /// traces, injected drive sequences).
 #[derive(Clone, Debug)]
@@ -532,7 +532,7 @@ impl Stepper {
     }
 
     /// Advances one ISR period with the bridge lines selecting `drive`.
-    pub fn advance(&mut self, drive: Drive, mode: BridgeMode) -> Period {
+    pub fn advance(&mut self, drive: Switches, mode: BridgeMode) -> Period {
         let ts = self.ts_s;
         #[allow(clippy::cast_precision_loss)]
         let mut t = self.k as f64 * ts;
@@ -547,8 +547,8 @@ impl Stepper {
         };
         let n = f64::from(self.substeps);
         match (drive, mode) {
-            (Drive::Coast, _) => self.phase(Phase::Coast, ts, self.substeps, &mut t, &mut p),
-            (Drive::Driven { forward, fraction }, BridgeMode::Averaged) => {
+            (Switches::Coast, _) => self.phase(Phase::Coast, ts, self.substeps, &mut t, &mut p),
+            (Switches::Driven { forward, fraction }, BridgeMode::Averaged) => {
                 let sign = if forward { 1.0 } else { -1.0 };
                 self.phase(
                     Phase::Driven { sign, fraction },
@@ -558,7 +558,7 @@ impl Stepper {
                     &mut p,
                 );
             }
-            (Drive::Driven { forward, fraction }, BridgeMode::Switching) => {
+            (Switches::Driven { forward, fraction }, BridgeMode::Switching) => {
                 let sign = if forward { 1.0 } else { -1.0 };
                 let on = Phase::Driven {
                     sign,
@@ -644,22 +644,12 @@ pub mod mode_name {
     use ema::bridge::Mode;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    /// The name of a mode.
-    #[must_use]
-    pub const fn name(mode: Mode) -> &'static str {
-        match mode {
-            Mode::Coast => "coast",
-            Mode::Forward => "forward",
-            Mode::Reverse => "reverse",
-        }
-    }
-
     /// Serde serialiser.
     ///
     /// # Errors
     /// The serializer's.
     pub fn serialize<S: Serializer>(mode: &Mode, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(name(*mode))
+        s.serialize_str(mode.name())
     }
 
     /// Serde deserialiser.
@@ -668,9 +658,9 @@ pub mod mode_name {
     /// An unknown name.
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Mode, D::Error> {
         let s = String::deserialize(d)?;
-        [Mode::Coast, Mode::Forward, Mode::Reverse]
+        Mode::ALL
             .into_iter()
-            .find(|m| name(*m) == s)
+            .find(|m| m.name() == s)
             .ok_or_else(|| serde::de::Error::custom(format!("unknown bridge mode `{s}`")))
     }
 }
@@ -735,7 +725,7 @@ mod tests {
             v_mps: 0.0,
             i_a: 25.0,
         };
-        let drive = Drive::Driven {
+        let drive = Switches::Driven {
             forward: true,
             fraction: 0.5,
         };
@@ -794,7 +784,7 @@ mod tests {
             },
         );
         assert!((st.sample().vbus_v - 155.0).abs() < 1e-9);
-        let p = st.advance(Drive::Coast, BridgeMode::Averaged);
+        let p = st.advance(Switches::Coast, BridgeMode::Averaged);
         // L di/dt = -(151.4 + 1.4 i): with tau = L/1.4 = 41.67 us the current reaches 0 at
         // t0 = tau ln(113.14/108.14) = 1.883 us, int i dt = 4.66e-6 C, and the source takes
         // back 150 V * 4.66e-6 C = 0.699 mJ (of the 0.729 mJ stored).
@@ -804,7 +794,7 @@ mod tests {
             let now = st.sample();
             assert_eq!(now.i_a, 0.0);
             assert_eq!(now.vbus_v, 150.0);
-            let p = st.advance(Drive::Coast, BridgeMode::Switching);
+            let p = st.advance(Switches::Coast, BridgeMode::Switching);
             assert_eq!(p.u_abs_max_v, 0.0);
         }
     }
@@ -848,10 +838,10 @@ mod tests {
 
     #[test]
     fn drives_replay_from_a_recorded_mode_and_duty() {
-        assert_eq!(Drive::from_mode(Mode::Coast, 100, 4200), Drive::Coast);
+        assert_eq!(Switches::from_mode(Mode::Coast, 100, 4200), Switches::Coast);
         assert_eq!(
-            Drive::from_mode(Mode::Reverse, 2100, 4200),
-            Drive::Driven {
+            Switches::from_mode(Mode::Reverse, 2100, 4200),
+            Switches::Driven {
                 forward: false,
                 fraction: 0.5
             }

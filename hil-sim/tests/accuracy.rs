@@ -4,7 +4,7 @@
 use hil_sim::accuracy::{
     bench_scenario, fewest_substeps, reference_substeps, Reference, BENCH_SUBSTEPS, TOLERANCE_REL,
 };
-use hil_sim::hal::Drive;
+use hil_sim::hal::Switches;
 use hil_sim::montecarlo::draw_seed;
 use hil_sim::scenario::{Initial, Sensors, TruePlant, Uncertainty};
 use hil_sim::sim::Stepper;
@@ -74,10 +74,10 @@ fn an_open_loop_replay_of_the_physical_plant_drifts_whatever_the_step() {
     let plant = sc.plant.resolve(&sc.controller.plant);
     let mut replay = Stepper::for_scenario(&sc, plant, 10).unwrap();
     let mut drift = 0.0_f64;
-    for s in &closed.trace {
+    for s in &closed.samples {
         drift = drift.max((replay.sample().x_m - s.x_m).abs());
         replay.advance(
-            Drive::from_mode(s.mode, s.duty, sc.bridge.max_duty),
+            Switches::from_mode(s.mode, s.duty, sc.bridge.max_duty),
             sc.bridge.mode,
         );
     }

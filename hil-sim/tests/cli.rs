@@ -8,7 +8,7 @@ use clap::Parser;
 use hil_sim::cli::{
     self, compare, faults, golden, montecarlo, paper, run, scenarios, tune, Cli, Command, Output,
 };
-use hil_sim::report::trace::COLUMNS;
+use hil_sim::report::decimated::COLUMNS;
 
 fn dir(test: &str) -> PathBuf {
     let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("cli-{test}"));

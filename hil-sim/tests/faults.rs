@@ -263,13 +263,13 @@ fn current_stuck_is_unobservable_within_the_deadline() {
             .unwrap();
         let healthy = run(&base.clone().with_duration_s(c.at_s + 2.0 * DEADLINE_S)).unwrap();
         let at = healthy
-            .trace
+            .samples
             .iter()
             .find(|s| s.t_s >= c.at_s - 1e-9)
             .unwrap()
             .i_a;
         let excursion = healthy
-            .trace
+            .samples
             .iter()
             .filter(|s| s.t_s >= c.at_s && s.t_s <= c.at_s + DEADLINE_S)
             .map(|s| (s.i_a - at).abs())
@@ -303,7 +303,7 @@ fn a_current_reading_frozen_in_a_steady_phase_is_found_later() {
         .with_duration_s(0.3)
         .with_fault(0.2, Injected::CurrentStuck);
     let r = run(&sc).unwrap();
-    let first = r.trace.iter().find(|s| s.fault.is_some()).unwrap();
+    let first = r.samples.iter().find(|s| s.fault.is_some()).unwrap();
     assert_eq!(first.fault, Some(Fault::CurrentStuck));
     let after = first.t_s - 0.2;
     println!("current stuck while holding: named after {after} s");
@@ -325,21 +325,21 @@ fn a_tick_that_stops_coasts_the_bridge_within_half_a_millisecond() {
         .with_fault(stall_s, Injected::MissedDeadlines { ticks: u32::MAX });
     let r = run(&sc).unwrap();
     let first_coast = r
-        .trace
+        .samples
         .iter()
         .position(|s| s.t_s >= stall_s && s.mode == ema::bridge::Mode::Coast)
         .unwrap();
-    let coast_s = r.trace[first_coast].t_s;
+    let coast_s = r.samples[first_coast].t_s;
     assert!((coast_s - 300e-6).abs() < 1e-9, "{coast_s}");
     assert!(coast_s - stall_s <= 0.5e-3);
     // Driven all through the stall, coasting after, with the overrun latched.
-    let stalled = &r.trace[1..first_coast];
+    let stalled = &r.samples[1..first_coast];
     assert!(stalled.iter().all(|s| s.mode == ema::bridge::Mode::Forward));
     assert!(stalled.iter().all(|s| s.fault.is_none()));
-    let after = &r.trace[first_coast..];
+    let after = &r.samples[first_coast..];
     assert!(after.iter().all(|s| s.mode == ema::bridge::Mode::Coast));
     assert!(after.iter().all(|s| s.fault == Some(Fault::Overrun)));
-    assert_eq!(r.trace.last().unwrap().i_a, 0.0);
+    assert_eq!(r.samples.last().unwrap().i_a, 0.0);
 }
 
 /// Healthy runs of every case's scenario without the injection raise nothing, on every

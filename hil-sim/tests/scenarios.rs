@@ -7,7 +7,7 @@
 //! bridge, step from x0 = (1 mm, 0, 0) to 3 mm.
 
 use ema::supervisor::Fault;
-use hil_sim::hal::{self, Adc, Drive};
+use hil_sim::hal::{self, Adc, Switches};
 use hil_sim::plant::ForceModel;
 use hil_sim::scenario::{BridgeMode, Reference, Sensors, StepAt, TruePlant, Uncertainty};
 use hil_sim::sim::{Stepper, Truth};
@@ -51,7 +51,7 @@ fn paper_example_at_1_mhz_behaves_as_reproduced() {
     // The law asks for more than the 150 V supply at start-up: measured 259.6 V, above
     // 225 V until 38 us, 66 samples saturated.
     assert!(s.u_cmd_peak_v >= 225.0, "{}", s.u_cmd_peak_v);
-    let over_225 = r.trace.iter().filter(|s| s.u_cmd_v >= 225.0);
+    let over_225 = r.samples.iter().filter(|s| s.u_cmd_v >= 225.0);
     assert!(over_225.clone().all(|s| s.t_s < 100e-6));
     assert!(over_225.count() >= 5);
     assert!(s.saturated_samples > 0);
@@ -72,7 +72,7 @@ fn paper_law_at_20_khz_trips_the_default_30_a_limit_at_once() {
     assert_eq!(f.fault, Some(Fault::OverCurrent));
     assert!((f.t_s - 50e-6).abs() < 1e-9, "{}", f.t_s);
     // The bridge coasts from then on and the current freewheels to zero.
-    assert_eq!(r.trace.last().unwrap().i_a, 0.0);
+    assert_eq!(r.samples.last().unwrap().i_a, 0.0);
 }
 
 /// With the trip raised to 100 A (this test is about the law, not the supervisor), the
@@ -187,7 +187,7 @@ fn a_fault_releases_the_armature_onto_its_stop() {
         (landing - speed).abs() < 1e-3 * speed,
         "{landing} vs {speed}"
     );
-    assert_eq!(r.trace.last().unwrap().x_m, 0.0);
+    assert_eq!(r.samples.last().unwrap().x_m, 0.0);
 }
 
 /// Metrics are per segment for a sequence of steps (measured at 100 kHz: the move up
@@ -220,7 +220,7 @@ fn a_sequence_has_metrics_per_segment() {
     assert!(seg[1].steady_current_a < seg[0].steady_current_a - 1.0);
 }
 
-fn replay(sc: &Scenario, drives: &[Drive], substeps: u32) -> Vec<Truth> {
+fn replay(sc: &Scenario, drives: &[Switches], substeps: u32) -> Vec<Truth> {
     let plant = sc.plant.resolve(&sc.controller.plant);
     let mut st = Stepper::for_scenario(sc, plant, substeps).unwrap();
     drives
@@ -258,10 +258,10 @@ fn halving_the_step_changes_the_trajectory_by_less_than_1e_5() {
             .with_bridge_mode(mode);
         assert_eq!(sc.integration.substeps, 10);
         let r = run(&sc).unwrap();
-        let drives: Vec<Drive> = r
-            .trace
+        let drives: Vec<Switches> = r
+            .samples
             .iter()
-            .map(|s| Drive::from_mode(s.mode, s.duty, sc.bridge.max_duty))
+            .map(|s| Switches::from_mode(s.mode, s.duty, sc.bridge.max_duty))
             .collect();
         let peak_a = r.metrics.i_peak_a;
         assert!(peak_a > 30.0, "{peak_a}");

@@ -7,12 +7,12 @@
 //! supplies ideal SI measurements instead of converter codes).
 //!
 //! ```
-//! use ema::bridge::{HBridge, NullPin, NullPwm};
+//! use ema::bridge::{HBridge, NullPin, NullPwm, BOARD_MAX_DUTY};
 //! use ema::control::Settings;
 //! use ema::sense::Measurement;
 //! let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
 //! let mut state = cfg.initial_state();
-//! let mut bridge = HBridge::new(NullPwm::new(4200), NullPin(false), NullPin(false)).unwrap();
+//! let mut bridge = HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
 //!
 //! // Armature at 1 mm, no current, 24 V bus, target 3 mm: the law drives current in.
 //! let frame = cfg.sense().frame(&Measurement { x_m: 1e-3, i_a: 0.0, vbus_v: 24.0 });
@@ -38,12 +38,12 @@ use crate::math;
 use crate::model::Plant;
 use crate::observer::{self, Estimate};
 use crate::sense::{Calibration, Frame, Measurement};
+use crate::shaping;
 use crate::supervisor::{self, monitor, Fault, Limits, Monitors};
-use crate::trajectory;
 
 /// Everything needed to build a controller, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Settings {
@@ -65,7 +65,7 @@ pub struct Settings {
     pub delay_ticks: u8,
     /// Reference shaping; `None` passes the set point through as a step.
     #[cfg_attr(feature = "serde", serde(default))]
-    pub shaping: Option<trajectory::Settings>,
+    pub shaping: Option<shaping::Settings>,
     /// Fault detectors that need history (all off by default in files).
     #[cfg_attr(feature = "serde", serde(default))]
     pub monitors: Monitors,
@@ -128,7 +128,7 @@ impl Settings {
     /// The first invalid parameter, by name, with its value and the reason.
     pub fn build(&self) -> Result<Config, Error> {
         config::positive("rate_hz", self.rate_hz)?;
-        let ts_s = config::positive("ts_s", 1.0 / self.rate_hz)?;
+        let ts_s = config::sample_period(1.0 / self.rate_hz)?;
         self.plant.validate()?;
         self.sense.validate()?;
         self.limits.validate()?;
@@ -152,13 +152,13 @@ impl Settings {
 
 /// A validated controller configuration. Immutable; the tick only reads it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     ts_s: f32,
     sense: Calibration,
     observer: observer::Config,
     law: law::Config,
-    shaping: Option<trajectory::Config>,
+    shaping: Option<shaping::Config>,
     monitors: monitor::Config,
     limits: Limits,
     stroke_m: f32,
@@ -166,7 +166,7 @@ pub struct Config {
 
 /// The controller's mutable state.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// Observer state.
     pub observer: observer::State,
@@ -175,9 +175,9 @@ pub struct State {
     /// Latched fault and counters.
     pub supervisor: supervisor::State,
     /// History of the fault detectors.
-    pub monitor: monitor::MonitorState,
+    pub monitor: monitor::State,
     /// Reference-shaping state.
-    pub trajectory: trajectory::State,
+    pub shaping: shaping::State,
     /// Average voltage the bridge applied over the last period \[V\].
     pub u_prev_v: f32,
     /// Ticks since start (wrapping).
@@ -186,7 +186,7 @@ pub struct State {
 
 /// What one tick did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Status {
     /// Latched fault (the bridge coasts while there is one).
     pub fault: Option<Fault>,
@@ -221,6 +221,12 @@ impl Config {
         &self.limits
     }
 
+    /// The stroke the set point and the reference's start are clamped to \[m\].
+    #[must_use]
+    pub const fn stroke_m(&self) -> f32 {
+        self.stroke_m
+    }
+
     /// The law.
     #[must_use]
     pub const fn law(&self) -> &law::Config {
@@ -235,7 +241,7 @@ impl Config {
 
     /// The reference shaping, if any.
     #[must_use]
-    pub const fn shaping(&self) -> Option<&trajectory::Config> {
+    pub const fn shaping(&self) -> Option<&shaping::Config> {
         self.shaping.as_ref()
     }
 
@@ -252,8 +258,8 @@ impl Config {
             observer: observer::State::default(),
             law: self.law.initial_state(),
             supervisor: supervisor::State::default(),
-            monitor: monitor::MonitorState::default(),
-            trajectory: trajectory::State::default(),
+            monitor: monitor::State::default(),
+            shaping: shaping::State::default(),
             u_prev_v: 0.0,
             ticks: 0,
         }
@@ -309,7 +315,7 @@ impl Config {
         state.monitor.rearm();
         state.observer = observer::State::default();
         state.law = self.law.initial_state();
-        state.trajectory = trajectory::State::default();
+        state.shaping = shaping::State::default();
         state.u_prev_v = 0.0;
     }
 
@@ -347,13 +353,10 @@ impl Config {
         let setpoint_m = math::clamp(setpoint_m, 0.0, self.stroke_m);
         status.reference = match &self.shaping {
             Some(shaping) => {
-                if !state.trajectory.is_primed() {
-                    shaping.start(
-                        &mut state.trajectory,
-                        math::clamp(m.x_m, 0.0, self.stroke_m),
-                    );
+                if !state.shaping.is_primed() {
+                    shaping.start(&mut state.shaping, math::clamp(m.x_m, 0.0, self.stroke_m));
                 }
-                shaping.step(&mut state.trajectory, setpoint_m)
+                shaping.step(&mut state.shaping, setpoint_m)
             }
             None => Reference::hold(setpoint_m),
         };
@@ -430,12 +433,12 @@ mod properties;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bridge::{Mode, NullPin, NullPwm};
+    use crate::bridge::{Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
 
     fn setup() -> (Config, State, HBridge<NullPwm, NullPin>) {
         let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
         let st = cfg.initial_state();
-        let b = HBridge::new(NullPwm::new(4200), NullPin(false), NullPin(false)).unwrap();
+        let b = HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
         (cfg, st, b)
     }
 
@@ -453,7 +456,7 @@ mod tests {
         let s = cfg.tick_measured(&mut st, &mut b, &meas(1e-3, 0.0), 3e-3);
         assert_eq!(s.fault, None);
         assert_eq!(s.drive.mode, Mode::Forward);
-        assert_eq!(s.drive.duty, 4200);
+        assert_eq!(s.drive.duty, BOARD_MAX_DUTY);
         assert_eq!(s.drive.u_v, 24.0);
         assert!(
             s.output.u_v > 24.0,
@@ -553,6 +556,10 @@ mod tests {
         assert_eq!(s.build().unwrap_err().param, "rate_hz");
         let mut s = Settings::paper(20_000.0, 24.0);
         s.rate_hz = -5.0;
+        assert_eq!(s.build().unwrap_err().param, "rate_hz");
+        // So slow that its period is not finite: still named as the rate.
+        let mut s = Settings::paper(20_000.0, 24.0);
+        s.rate_hz = 1e-39;
         assert_eq!(s.build().unwrap_err().param, "rate_hz");
         let mut s = Settings::paper(20_000.0, 24.0);
         s.law = law::Settings::Paper(law::paper::Gains {

@@ -33,7 +33,7 @@ use std::vec::Vec;
 
 const CASES: u32 = 250;
 const LEN: usize = 700;
-const MAX_DUTY: u16 = 4200;
+const MAX_DUTY: u16 = crate::bridge::BOARD_MAX_DUTY;
 
 /// PWM and pins that record what the bridge did, for checking after each tick.
 #[derive(Clone, Default)]

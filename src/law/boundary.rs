@@ -46,7 +46,7 @@ use crate::model::Plant;
 
 /// The boundary-layer law, validated.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     paper: paper::Config,
     /// `1 / ((1 + 2 d) Ts)` \[1/s\].
@@ -66,7 +66,7 @@ impl Config {
         delay_ticks: u8,
     ) -> Result<Self, Error> {
         let paper = gains.build(plant, ts_s)?;
-        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+        config::delay_ticks(delay_ticks)?;
         Ok(Self {
             paper,
             layer_gain: 1.0 / ((1.0 + 2.0 * f32::from(delay_ticks)) * ts_s),

@@ -11,7 +11,7 @@ pub mod practical;
 
 /// Reference trajectory at the current tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Reference {
     /// Position `y_r` \[m\].
     pub x_m: f32,
@@ -35,7 +35,7 @@ impl Reference {
 
 /// What a law sees at one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Input {
     /// Position `x1` (estimate) \[m\].
     pub x_m: f32,
@@ -57,7 +57,7 @@ pub struct Input {
 
 /// What a law asks for at one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Output {
     /// Coil voltage command `u` \[V\] (before saturation to the supply).
     pub u_v: f32,
@@ -76,9 +76,13 @@ pub trait Law {
     fn step(&self, state: &mut Self::State, input: &Input) -> Output;
 }
 
+/// Every law, by the name configuration files give it ([`Settings::name`]), in the order
+/// the law comparison, the golden traces and the per-law counts list them.
+pub const NAMES: [&str; 3] = ["paper", "boundary_layer", "practical"];
+
 /// The law and its gains, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(
     feature = "serde",
@@ -121,16 +125,16 @@ impl Settings {
     #[must_use]
     pub const fn name(&self) -> &'static str {
         match self {
-            Settings::Paper(_) => "paper",
-            Settings::BoundaryLayer(_) => "boundary_layer",
-            Settings::Practical(_) => "practical",
+            Settings::Paper(_) => NAMES[0],
+            Settings::BoundaryLayer(_) => NAMES[1],
+            Settings::Practical(_) => NAMES[2],
         }
     }
 }
 
 /// The law selected by configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Config {
     /// The paper's law exactly as published ([`paper`]).
     Paper(paper::Config),
@@ -142,7 +146,7 @@ pub enum Config {
 
 /// State of the selected law.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum State {
     /// State of [`Config::Paper`] and [`Config::BoundaryLayer`].
     Paper(paper::State),
@@ -164,9 +168,9 @@ impl Config {
     #[must_use]
     pub const fn name(&self) -> &'static str {
         match self {
-            Config::Paper(_) => "paper",
-            Config::BoundaryLayer(_) => "boundary_layer",
-            Config::Practical(_) => "practical",
+            Config::Paper(_) => NAMES[0],
+            Config::BoundaryLayer(_) => NAMES[1],
+            Config::Practical(_) => NAMES[2],
         }
     }
 }

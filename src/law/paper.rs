@@ -49,7 +49,7 @@ use crate::model::{Convention, Envelope, Plant};
 
 /// The paper's gains.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Gains {
@@ -81,7 +81,7 @@ impl Gains {
     /// passes).
     pub fn build(&self, plant: &Plant, ts_s: f32) -> Result<Config, Error> {
         let envelope = plant.envelope()?;
-        config::positive("law.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         config::positive("law.alpha1", self.alpha1)?;
         config::positive("law.alpha2", self.alpha2)?;
         config::positive("law.eps1_v", self.eps1_v)?;
@@ -119,7 +119,7 @@ impl Gains {
 /// `Q = [[-alpha1, a/2], [a/2, b - alpha2]]`; the theorem needs `Q` negative definite and
 /// `alpha2 > |b|`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Theorem1 {
     /// `a` \[1/s^2\]-like, as in the paper.
     pub a: f32,
@@ -199,7 +199,7 @@ impl Theorem1 {
 
 /// The paper's law, validated and ready for the tick.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     gains: Gains,
     theorem1: Theorem1,
@@ -241,7 +241,7 @@ impl Config {
 
 /// State of the paper's law: the previous desired current, for `x3d'`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// `x3d` at the previous tick \[A\].
     pub i_d_prev_a: f32,
@@ -395,10 +395,10 @@ mod tests {
     #[test]
     fn non_physical_parameters_are_refused() {
         let p = Plant::paper();
-        assert_eq!(Gains::paper().build(&p, 0.0).unwrap_err().param, "law.ts_s");
+        assert_eq!(Gains::paper().build(&p, 0.0).unwrap_err().param, "rate_hz");
         assert_eq!(
             Gains::paper().build(&p, -1e-4).unwrap_err().param,
-            "law.ts_s"
+            "rate_hz"
         );
         let g = Gains {
             alpha1: f32::NAN,

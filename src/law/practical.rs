@@ -3,7 +3,7 @@
 //!
 //! ## Outer loop: backstepping with the nominal model and a disturbance estimate
 //!
-//! With the shaped reference `(r, r', r'')` ([`crate::trajectory`]), the estimate
+//! With the shaped reference `(r, r', r'')` ([`crate::shaping`]), the estimate
 //! `(x, v, d)` from the extended-state observer ([`crate::observer`]):
 //!
 //! ```text
@@ -101,7 +101,7 @@ pub const INTEGRAL: f32 = 0.05;
 
 /// Gains of the practical law.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Gains {
@@ -139,13 +139,13 @@ impl Gains {
     /// The first bad parameter, by name.
     pub fn build(&self, plant: &Plant, ts_s: f32, delay_ticks: u8) -> Result<Config, Error> {
         let envelope = plant.envelope()?;
-        config::positive("law.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         config::positive("law.alpha1", self.alpha1)?;
         config::positive("law.alpha2", self.alpha2)?;
         config::positive("law.current_max_a", self.current_max_a)?;
         config::within("law.reach", self.reach, f32::MIN_POSITIVE, 1.0)?;
         config::within("law.integral", self.integral, 0.0, 0.5)?;
-        config::within("delay_ticks", f32::from(delay_ticks), 0.0, 1.0)?;
+        config::delay_ticks(delay_ticks)?;
         let nominal = envelope.nominal();
         let dynamics = plant.robust_dynamics()?;
         // L_lo / L_nom = (rho_x_nom g + rho0) / (rho_x_hi g + rho0) >= rho_x_nom / rho_x_hi.
@@ -168,7 +168,7 @@ impl Gains {
 
 /// The practical law, validated.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     gains: Gains,
     nominal: Nominal,
@@ -204,7 +204,7 @@ impl Config {
 
 /// State of the practical law.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// Integral voltage correction `w` \[V\].
     pub w_v: f32,

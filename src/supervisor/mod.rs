@@ -21,7 +21,7 @@ pub const DEADLINE_S: f32 = 1e-3;
 
 /// Fault codes. The numeric value is stable (logged, stored, compared in golden traces).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[repr(u8)]
 pub enum Fault {
     /// Position-sensor code on an ADC rail: sensor open or shorted.
@@ -157,7 +157,7 @@ impl fmt::Display for Fault {
 
 /// Trip limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Limits {
@@ -242,7 +242,7 @@ impl Limits {
 
 /// Latched fault and per-fault counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     latched: Option<Fault>,
     counts: [u16; FAULT_COUNT],

@@ -184,7 +184,7 @@ impl embedded_hal::digital::OutputPin for RamPin {
 pub type Bridge = HBridge<RamPwm, RamPin>;
 
 /// A bridge on the RAM registers, coasting, with PWM resolution `max_duty` (the
-/// firmware's TIM1 gives 4201).
+/// firmware's TIM1 at 20 kHz gives [`ema::bridge::BOARD_MAX_DUTY`]).
 pub fn bridge(max_duty: u16) -> Bridge {
     let pwm = RamPwm {
         ccr: &PWM_CCR,
@@ -203,9 +203,6 @@ pub fn bridge(max_duty: u16) -> Bridge {
         Err(e) => match e {},
     }
 }
-
-/// PWM resolution of the firmware's TIM1 (ARR + 1).
-pub const FIRMWARE_MAX_DUTY: u16 = 4201;
 
 /// Minimum, median and maximum of `v` (sorts it).
 pub fn min_median_max(v: &mut [u32]) -> (u32, u32, u32) {

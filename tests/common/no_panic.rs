@@ -32,7 +32,7 @@ fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
 /// Ticks every reference case on opaque inputs; returns something that depends on all.
 pub fn exercise() -> u32 {
     let mut acc = 0u32;
-    let mut bridge = crate::common::bridge(black_box(crate::common::FIRMWARE_MAX_DUTY));
+    let mut bridge = crate::common::bridge(black_box(ema::bridge::BOARD_MAX_DUTY));
     for case in CASES {
         let Ok(cfg) = (case.settings)().and_then(|s| s.build()) else {
             continue;

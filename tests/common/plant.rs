@@ -1,5 +1,5 @@
-//! A minimal closed-loop actuator, `no_std` and `f32`: the tests on the Cortex-M4F and the
-//! temporary golden-trace generator drive the tick with it. It is not the simulator
+//! A minimal closed-loop actuator, `no_std` and `f32`: the tests on the Cortex-M4F (cycle
+//! counts, the guard, SysTick, the bench session) drive the tick with it. It is not the simulator
 //! (`hil-sim`, f64, uncertain plant, ADC model, scenarios); it only has to give the tick
 //! the inputs a real loop gives it, physically consistent enough for the supervisor's
 //! monitors (the electrical residual compares the measured current with the applied

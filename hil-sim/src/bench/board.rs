@@ -385,7 +385,7 @@ impl VirtualBoard {
             .tick(&mut self.plant.bridge, &inputs, &mut isr, End::default);
         self.plant
             .stepper
-            .advance(self.plant.lines.drive(), self.plant.mode);
+            .advance(self.plant.lines.switches(), self.plant.mode);
         self.ticks += 1;
 
         run.dispatcher.poll(&mut main);

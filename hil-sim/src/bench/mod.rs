@@ -300,7 +300,7 @@ pub fn capture_trace(capture: &Capture, at_s: f64, rate_hz: f64) -> Vec<sim::Sam
 pub fn prediction_samples(run: &Run, capture: &Capture, at_s: f64, rate_hz: f64) -> Vec<Sample> {
     let start = (at_s * rate_hz).round() as usize;
     (0..capture.samples.len())
-        .filter_map(|k| run.trace.get(start + k * usize::from(capture.decimation)))
+        .filter_map(|k| run.samples.get(start + k * usize::from(capture.decimation)))
         .map(|p| Sample {
             r_m: p.r_shaped_m as f32,
             x_m: p.x_meas_m as f32,

@@ -22,7 +22,7 @@ use std::path::PathBuf;
 use ema::law;
 
 use crate::report::{
-    self, figures, figures::Case, plot::Legend, sig, trace, Figure, Panel, Series, Table,
+    self, decimated, figures, figures::Case, plot::Legend, sig, Figure, Panel, Series, Table,
 };
 use crate::scenario::{Initial, Reference};
 use crate::{catalog, Run, Sample, Scenario, Segment};
@@ -124,18 +124,18 @@ pub fn measure(sc: &Scenario, r: &Run) -> anyhow::Result<Measured> {
         .ok_or_else(|| anyhow::anyhow!("scenario `{}` has no reference segment", sc.name))?;
     let end = step.spec.end_s;
     let a = r
-        .trace
+        .samples
         .partition_point(|s| s.t_s < end - sc.steady_window_s);
-    let b = r.trace.partition_point(|s| s.t_s < end);
-    let w = r.trace.get(a..b).unwrap_or_default();
+    let b = r.samples.partition_point(|s| s.t_s < end);
+    let w = r.samples.get(a..b).unwrap_or_default();
     Ok(Measured {
         name: sc.name.clone(),
         supply_v: sc.supply.voltage_v,
-        v_peak_mps: r.trace.iter().map(|s| s.v_mps.abs()).fold(0.0, f64::max),
+        v_peak_mps: r.samples.iter().map(|s| s.v_mps.abs()).fold(0.0, f64::max),
         x_chatter_m: detrended_pp(w, |s| s.x_m),
         v_chatter_mps: detrended_pp(w, |s| s.v_mps),
         last_over_bus_s: r
-            .trace
+            .samples
             .iter()
             .rev()
             .find(|s| s.u_cmd_v.abs() > s.vbus_v)
@@ -384,12 +384,16 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         if std::ptr::eq(sc, &continuous) {
             equilibrium = equilibrium_um(sc, &r);
             // Its 30 A trip never acts (peak 22.4 A), so it is also the 1 mm trajectory.
-            plane_traces.push((1e-3, z_plane(sc, &r.trace)));
-            let n = r.trace.partition_point(|s| s.t_s < STARTUP_S);
-            startup = trace::decimate(r.trace.get(..n).unwrap_or_default(), 1);
+            plane_traces.push((1e-3, z_plane(sc, &r.samples)));
+            let n = r.samples.partition_point(|s| s.t_s < STARTUP_S);
+            startup = decimated::decimate(r.samples.get(..n).unwrap_or_default(), 1);
         }
-        let csv_rows = trace::decimate(&r.trace, trace::every_for(r.trace.len(), args.max_rows));
-        let plot_rows = trace::decimate(&r.trace, trace::every_for(r.trace.len(), 4000));
+        let csv_rows = decimated::decimate(
+            &r.samples,
+            decimated::every_for(r.samples.len(), args.max_rows),
+        );
+        let plot_rows =
+            decimated::decimate(&r.samples, decimated::every_for(r.samples.len(), 4000));
         cases.push((sc.clone(), r.metrics, m, csv_rows, plot_rows));
     }
     for (sc, x0) in planes.iter().zip(Z_PLANE_STARTS_M) {
@@ -406,7 +410,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                 sig(f.t_s, 3)
             )?;
         }
-        plane_traces.push((x0, z_plane(sc, &r.trace)));
+        plane_traces.push((x0, z_plane(sc, &r.samples)));
     }
     plane_traces.sort_by(|a, b| a.0.total_cmp(&b.0));
 
@@ -431,7 +435,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     files.push(path);
     for (sc, _, _, rows, _) in [c, d] {
         let path = dir.join(format!("trace-{}.csv", sc.name));
-        trace::write_rows(&path, rows)?;
+        decimated::write_rows(&path, rows)?;
         files.push(path);
     }
     let path = dir.join("z1-z2.csv");
@@ -491,8 +495,8 @@ const STARTUP_S: f64 = 200e-6;
 
 /// The first [`STARTUP_S`] at 1 MHz, every sample: what the law asks for against what the
 /// supply gives.
-fn startup_panel(rows: &[trace::Row], supply_v: f64) -> Panel {
-    let us = |f: fn(&trace::Row) -> f64| rows.iter().map(|r| (r.t_s * 1e6, f(r))).collect();
+fn startup_panel(rows: &[decimated::Row], supply_v: f64) -> Panel {
+    let us = |f: fn(&decimated::Row) -> f64| rows.iter().map(|r| (r.t_s * 1e6, f(r))).collect();
     let t1 = STARTUP_S * 1e6;
     Panel::new("time [us]", "coil voltage u [V]")
         .caption("1 MHz ISR, first 200 us: the law's command against the supply")

@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::report::{self, figures, figures::Case, sig, trace, Table};
+use crate::report::{self, decimated, figures, figures::Case, sig, Table};
 use crate::{catalog, Metrics, Scenario};
 
 /// Arguments of `run`.
@@ -120,12 +120,12 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     let path = dir.join("metrics.csv");
     table.write_csv(&path)?;
     files.push(path);
-    let every = trace::every_for(r.trace.len(), args.max_rows);
+    let every = decimated::every_for(r.samples.len(), args.max_rows);
     let path = dir.join("trace.csv");
-    trace::write_csv(&path, &r.trace, every)?;
+    decimated::write_csv(&path, &r.samples, every)?;
     files.push(path);
 
-    let rows = trace::decimate(&r.trace, trace::every_for(r.trace.len(), 4000));
+    let rows = decimated::decimate(&r.samples, decimated::every_for(r.samples.len(), 4000));
     let case = [Case {
         label: &sc.name,
         rows: &rows,

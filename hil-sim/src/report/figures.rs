@@ -1,10 +1,10 @@
 //! The standard figures of a run, like the paper's: position and velocity, coil current,
-//! coil voltage (all against time), from decimated traces ([`super::trace::Row`]). Several
+//! coil voltage (all against time), from decimated traces ([`super::decimated::Row`]). Several
 //! cases share the position/velocity axes; current and voltage get one panel per case,
 //! since a chattering case would hide a quiet one.
 
+use super::decimated::Row;
 use super::plot::{Figure, Legend, Panel, Series};
-use super::trace::Row;
 
 /// One labelled, decimated trace.
 #[derive(Clone, Copy, Debug)]

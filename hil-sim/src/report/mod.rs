@@ -1,13 +1,13 @@
-//! Output for people and for other tools: tables (aligned text and CSV), decimated trace
+//! Output for people and for other tools: tables (aligned text and CSV), decimated sample
 //! CSV files, and PNG line plots, shared by every subcommand of the command line.
 //!
 //! * [`Table`]: a header and rows of strings; [`Table::to_text`] aligns it as a
 //!   Markdown table (readable in a terminal, pasteable into a README),
 //!   [`Table::write_csv`] writes it for a spreadsheet. [`metrics_table`] is the metrics
 //!   of one or more runs, one row per reference segment.
-//! * [`trace`]: a trace decimated to every `n`-th ISR sample, with the minimum and maximum
+//! * [`decimated`]: the simulation's samples decimated to every `n`-th ISR sample, with the minimum and maximum
 //!   of the current and voltage over each bucket of `n` samples so that chatter stays
-//!   visible ([`trace::decimate`], [`trace::write_csv`]).
+//!   visible ([`decimated::decimate`], [`decimated::write_csv`]).
 //! * [`plot`]: [`Figure`]s of stacked [`Panel`]s, each with named axes (units in the
 //!   label), several [`Series`] (lines, dashed lines, min/max bands) and a legend, written
 //!   as PNG through plotters' bitmap backend. Text is rendered with the bundled DejaVu Sans
@@ -19,18 +19,18 @@
 //!
 //! let r = run(&Scenario::paper(20_000.0).with_current_trip_a(100.0))?;
 //! report::metrics_table(&[("paper 20 kHz", &r.metrics)]).write_csv("metrics.csv".as_ref())?;
-//! report::trace::write_csv("trace.csv".as_ref(), &r.trace, 10)?;
-//! let x: Vec<(f64, f64)> = r.trace.iter().map(|s| (s.t_s, s.x_m * 1e3)).collect();
+//! report::decimated::write_csv("trace.csv".as_ref(), &r.samples, 10)?;
+//! let x: Vec<(f64, f64)> = r.samples.iter().map(|s| (s.t_s, s.x_m * 1e3)).collect();
 //! Figure::new("Position")
 //!     .panel(Panel::new("time [s]", "x1 [mm]").series(Series::line("x1", x)))
 //!     .write_png("x1.png".as_ref())?;
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+pub mod decimated;
 pub mod figures;
 pub mod plot;
 mod table;
-pub mod trace;
 
 pub use plot::{Figure, Panel, Series};
 pub use table::{metrics_table, Table, METRICS_COLUMNS};

@@ -153,12 +153,7 @@ fn main() -> ! {
 
 fn status_line(s: &Snapshot) {
     let fault = Fault::from_code(s.fault).map_or("none", Fault::name);
-    let mode = match s.mode {
-        0 => "coast",
-        1 => "forward",
-        2 => "reverse",
-        _ => "?",
-    };
+    let mode = ema::bridge::Mode::from_code(s.mode).map_or("?", ema::bridge::Mode::name);
     defmt::info!(
         "t={=u32}s {=str} fault={=str} bridge={=str} x={=i32}um i={=i32}mA | cycles/tick mean {=u32} max {=u32} (max since start {=u32}, period {=u32}) | overruns {=u32}",
         s.ticks / board::CONTROL_RATE_HZ,
@@ -391,7 +386,7 @@ fn ADC() {
             cycles,
             overruns: c.guarded.overruns(),
             fault: c.state.supervisor.latched().map_or(0, Fault::code),
-            mode: ema::trace::mode_code(c.bridge.mode()),
+            mode: c.bridge.mode().code(),
             x_um: stats::scaled(status.measurement.x_m, 1e6),
             i_ma: stats::scaled(status.measurement.i_a, 1e3),
         });

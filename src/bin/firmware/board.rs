@@ -278,6 +278,9 @@ const _: () = {
         "board.rate_hz must divide TIM1's 84 MHz half-clock (10, 20, 25, 40, 50 kHz ...)"
     );
     assert!(PWM_MAX_DUTY as u32 == PWM_ARR + 1);
+    // At the product's 20 kHz the timer is the reference board's, the resolution the
+    // golden traces are recorded at.
+    assert!(PWM_HZ != 20_000 || PWM_ARR == ema::bridge::BOARD_PWM_ARR as u32);
     assert!(CONTROL_PERIOD_CYCLES * CONTROL_RATE_HZ == SYSCLK_HZ);
     assert!(ADC_CLK_HZ <= 36_000_000);
     // The conversions end early in the period: the tick has over 40 us left.

@@ -1,4 +1,5 @@
-//! Decimated traces. At a 1 MHz ISR one second is a million 144-byte samples; a CSV or a
+//! The simulation's samples ([`crate::Run::samples`]) decimated for a CSV file or a plot
+//! (the `trace*.csv` files). At a 1 MHz ISR one second is a million 144-byte samples; a CSV or a
 //! plot keeps every `n`-th sample and, so that a current chattering from one sample to the
 //! next stays visible, the minimum and maximum of the current and of the coil voltage over
 //! each bucket of `n` samples.
@@ -7,7 +8,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::sim::{mode_name, Sample};
+use crate::sim::Sample;
 
 /// One row of a decimated trace: the first sample of a bucket of `n` ISR samples, and the
 /// extremes over the bucket. SI units, as in [`Sample`].
@@ -137,7 +138,7 @@ pub fn decimate(trace: &[Sample], every: usize) -> Vec<Row> {
                 r_shaped_m: s.r_shaped_m,
                 vbus_v: s.vbus_v,
                 duty: s.duty,
-                mode: mode_name::name(s.mode),
+                mode: s.mode.name(),
                 fault: s.fault.map_or("", ema::supervisor::Fault::name),
             })
         })

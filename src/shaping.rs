@@ -44,7 +44,7 @@ const QUINTIC_PEAK_VEL: f32 = 1.875;
 
 /// Reference-shaping parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Settings {
@@ -69,7 +69,7 @@ impl Settings {
         config::positive("shaping.current_max_a", self.current_max_a)?;
         config::within("shaping.margin", self.margin, f32::MIN_POSITIVE, 1.0)?;
         config::at_least("shaping.duration_min_s", self.duration_min_s, 0.0)?;
-        config::positive("shaping.ts_s", ts_s)?;
+        config::sample_period(ts_s)?;
         Ok(Config {
             settings: *self,
             envelope,
@@ -81,7 +81,7 @@ impl Settings {
 
 /// A validated planner.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
     settings: Settings,
     envelope: Envelope,
@@ -91,7 +91,7 @@ pub struct Config {
 
 /// The move in progress.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct State {
     /// Set point the move goes to \[m\].
     pub target_m: f32,

@@ -1,0 +1,325 @@
+//! Fault detectors that need history: I^2 t, stuck position sensor, the coil's electrical
+//! response, tracking error. Each is optional and runs inside the tick.
+//!
+//! ## Stuck position sensor
+//!
+//! See [`Stuck`]: a reading that stops within its noise band mid-move, while the reference
+//! runs on toward a target the reading has not reached.
+//!
+//! ## Electrical residual
+//!
+//! Between two current samples the bridge applied a known average voltage `u` (the drive
+//! of the tick that lies `delay` ticks before the older sample). Every admissible coil,
+//! inductance `L` in `[L_lo(g), L_hi(g)]` and resistance `R (1 +- tol)`, moves the current
+//! by (Tustin, as the law predicts it)
+//!
+//! ```text
+//! di = (Ts / L) (u - R i) / (1 + R Ts / (2 L))
+//! ```
+//!
+//! **The corner bank.** From an anchor (a reading), the four corner coils (`L_lo` or
+//! `L_hi`, `R_lo` or `R_hi`) are advanced tick by tick under the applied voltage. Their
+//! envelope, widened by a relative `margin` of its own extent, by `noise_codes` steps of
+//! the current converter (the allowance follows the calibration: the same board noise is
+//! 8 mA per code on a +-16.5 A channel and 20 mA on a +-40 A one) and by the back-EMF
+//! allowance, holds every admissible coil's current. A reading outside it for
+//! `confirm_ticks` ticks in a row on the same side is evidence against the coil or the
+//! sensor. The anchor is renewed every `window` ticks, but not while the reading is
+//! outside: evidence that starts late in a window is not thrown away. Summed over
+//! several ticks, the bank sees drives far too weak to show in a single step (a slow
+//! ramp, a coil slightly faster than its bounds), against a noise allowance paid once.
+//!
+//! Which fault it is follows from where the reading went, relative to the direction the
+//! admissible coils were driven (all corners above the anchor: driven up; all below:
+//! driven down; otherwise holding):
+//!
+//! | reading outside the envelope | fault |
+//! |---|---|
+//! | within `open_a` of zero while every admissible coil carries current | [`Fault::CoilOpen`] |
+//! | behind the drive, moved less than `1/gross` of the least admissible change | [`Fault::CurrentStuck`] |
+//! | behind the drive, but moved along it | [`Fault::ModelBounds`] (a coil slower than its bounds) |
+//! | ahead of the drive, against it, or away while holding: resistance fitted below `R_lo / gross` | [`Fault::CoilShort`] |
+//! | the same, resistance fitted above | [`Fault::ModelBounds`] (a coil faster than its bounds) |
+//!
+//! A frozen reading and a shorted coil that the law has already brought back to holding
+//! look alike (the current stays put on a voltage below what holds it in any admissible
+//! coil); they differ in what came first: a short makes the current run ahead of every
+//! admissible coil (or against the drive that the law then applies), a frozen reading
+//! never moves. So the verdict takes the reading's move since the anchor, and the anchor
+//! is kept while the evidence builds.
+//!
+//! **The fit.** Over the bank's window, the deviation `e` of each measured change from
+//! the nominal prediction `p = k (u - R i)/(1 + R k/2)` (`k = Ts/L_nom`) is fitted by
+//! least squares as `e = a p + b k i`: `a` is an inductance error, `b` a resistance
+//! deficit; the resistance fitted is `R - b`. When `p` and `k i` are proportional (the
+//! law holding on a constant voltage) the two cannot be separated and all of it is
+//! taken as resistance, which is what a short that the law holds looks like.
+//!
+//! **One step.** A single measured change beyond the one-step interval of the corners by
+//! more than `jump_a` plus `gross - 1` times the largest admissible change (no coil even
+//! `gross` times faster than the fastest admissible one makes it), followed by an
+//! admissible step, is a step in the reading, not in the coil: [`Fault::CurrentOffset`],
+//! found one tick later. A step that lands within `open_a` of zero is left to the bank: a
+//! coil that opens drops its current to zero within a period.
+//!
+//! The motional back-EMF `e = s_emf v i mu(g)` (the armature's velocity `v` from the
+//! observer) adds to the applied voltage: `di = k (u + e - R i) / (1 + R k / 2)`. It is
+//! taken with the nominal `mu` and an allowance of [`EMF_SPREAD`] of itself either way
+//! (the surfaces' bounds and the velocity estimate's error): on a fast, small valve it is
+//! as large as the resistive drop, and left out it reads as a coil outside its bounds.
+//!
+//! What this cannot see: a reading frozen while the coil is driven no harder than the
+//! resistance tolerance explains (`|u - R i| <= tol R |i|`, holding or a slow move)
+//! agrees with an admissible coil; it becomes observable only once the law, acting on the
+//! frozen reading, has driven the real current away from it.
+
+mod residual;
+mod stuck;
+#[cfg(test)]
+mod tests;
+mod thermal;
+mod tracking;
+
+pub use residual::{Residual, EMF_SPREAD};
+pub use stuck::{Stuck, MOVING_RATIO};
+pub use thermal::Thermal;
+pub use tracking::Tracking;
+
+use super::Fault;
+use crate::config::{self, Error};
+use crate::math;
+use crate::model::{Envelope, Plant};
+use crate::sense::Calibration;
+
+/// The optional detectors.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct Monitors {
+    /// I^2 t.
+    pub thermal: Option<Thermal>,
+    /// Stuck position sensor.
+    pub stuck: Option<Stuck>,
+    /// Electrical residual.
+    pub residual: Option<Residual>,
+    /// Tracking error.
+    pub tracking: Option<Tracking>,
+}
+
+impl Monitors {
+    /// Validates and builds the detectors for `plant`, the converters' calibration
+    /// `sense`, the sample period `ts_s` and `delay_ticks` of measurement delay.
+    ///
+    /// # Errors
+    /// The first bad parameter, by name.
+    pub fn build(
+        &self,
+        plant: &Plant,
+        sense: &Calibration,
+        ts_s: f32,
+        delay_ticks: u8,
+    ) -> Result<Config, Error> {
+        let envelope = plant.envelope()?;
+        config::delay_ticks(delay_ticks)?;
+        if let Some(t) = &self.thermal {
+            config::positive("monitors.thermal.continuous_a", t.continuous_a)?;
+            config::positive("monitors.thermal.allowance_a2s", t.allowance_a2s)?;
+        }
+        if let Some(s) = &self.stuck {
+            config::positive("monitors.stuck.band_codes", s.band_codes)?;
+            config::positive("monitors.stuck.reference_m", s.reference_m)?;
+        }
+        if let Some(residual) = &self.residual {
+            config::positive("monitors.residual.noise_codes", residual.noise_codes)?;
+            config::at_least("monitors.residual.margin", residual.margin, 0.0)?;
+            config::at_least(
+                "monitors.residual.confirm_ticks",
+                f32::from(residual.confirm_ticks),
+                2.0,
+            )?;
+            config::positive("monitors.residual.jump_a", residual.jump_a)?;
+            config::at_least("monitors.residual.open_a", residual.open_a, 0.0)?;
+            config::at_least("monitors.residual.gross", residual.gross, 1.0)?;
+            config::at_least("monitors.residual.window", f32::from(residual.window), 2.0)?;
+        }
+        let tracking_ticks = match &self.tracking {
+            Some(t) => {
+                config::positive("monitors.tracking.error_m", t.error_m)?;
+                // Checked in the file's unit, seconds: from one period to 1e9 periods.
+                config::within("monitors.tracking.time_s", t.time_s, ts_s, 1e9 * ts_s)?;
+                let ticks = math::clamp(t.time_s / ts_s, 1.0, 1e9);
+                // In [1, 1e9]: the truncation is the intended rounding down.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let n = ticks as u32;
+                n
+            }
+            None => 0,
+        };
+        // The deadline in whole periods; positive, and far below u16::MAX at any rate the
+        // tick runs at.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let moving_ticks = math::clamp(
+            libm::roundf(super::DEADLINE_S / ts_s),
+            1.0,
+            f32::from(u16::MAX),
+        ) as u16;
+        let r_ohm = plant.resistance_ohm;
+        let tol = plant.tolerance.resistance;
+        let noise_a = self.residual.as_ref().map_or(0.0, |residual| {
+            residual.noise_codes * sense.current.scale.abs()
+        });
+        let band_m = self
+            .stuck
+            .as_ref()
+            .map_or(0.0, |s| s.band_codes * sense.position.scale.abs());
+        Ok(Config {
+            monitors: *self,
+            ts_over_n2: ts_s / plant.magnetics.turns_sq(),
+            noise_a,
+            band_m,
+            nominal: envelope.nominal(),
+            envelope,
+            convention: plant.convention,
+            ts_s,
+            r_nom: r_ohm,
+            r_lo: r_ohm * (1.0 - tol),
+            r_hi: r_ohm * (1.0 + tol),
+            emf_sign: plant.convention.emf_sign(),
+            tracking_ticks,
+            moving_ticks,
+            delayed: delay_ticks > 0,
+        })
+    }
+}
+
+/// The detectors, validated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
+pub struct Config {
+    monitors: Monitors,
+    /// `Ts / N^2`, so that `Ts / L(g) = rho(g) Ts / N^2` needs no division.
+    ts_over_n2: f32,
+    noise_a: f32,
+    band_m: f32,
+    envelope: Envelope,
+    nominal: crate::model::Nominal,
+    convention: crate::model::Convention,
+    ts_s: f32,
+    r_nom: f32,
+    r_lo: f32,
+    r_hi: f32,
+    emf_sign: f32,
+    tracking_ticks: u32,
+    /// The detection deadline in interrupt periods (see [`Stuck`]).
+    moving_ticks: u16,
+    delayed: bool,
+}
+
+/// History the detectors keep.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
+pub struct State {
+    /// `integral of (i^2 - I_c^2) dt`, floored at 0 \[A^2 s\].
+    pub i2t_a2s: f32,
+    /// Anchor of the band the reading must leave: the reading at its last exit \[m\].
+    x_last: f32,
+    /// The reading at the exit before \[m\].
+    x_prev: f32,
+    /// The reading left its last two bands the same way, the reference travelling at most
+    /// [`MOVING_RATIO`] times as far as the reading across them.
+    x_moving: bool,
+    /// Direction of the reading's last exit from its band (0 before the first).
+    x_dir: i8,
+    /// Reference at the reading's last exit \[m\].
+    r_at_change: f32,
+    /// Reference at the exit before \[m\].
+    r_prev: f32,
+    /// Ticks since the reading's last exit.
+    x_ticks: u16,
+    /// Ticks the reading's last crossing took.
+    x_prev_ticks: u16,
+    /// Travel of the velocity estimate since the reading's last exit, the way it went
+    /// \[m\].
+    x_travel: f32,
+    i_prev: f32,
+    /// Average voltage applied by the last two drives, newest first, and whether the
+    /// bridge was driving (not coasting) then.
+    u_hist: [(f32, bool); 2],
+    /// The previous step was beyond the one-step interval by a jump.
+    jumped: bool,
+    /// Corner bank: the four corner coils' currents since the anchor \[A\].
+    bank: [f32; 4],
+    /// Measured current at the bank's anchor \[A\].
+    bank_anchor: f32,
+    /// Ticks since the anchor (0: anchor at the next step).
+    bank_ticks: u16,
+    /// Consecutive steps with the reading outside the bank on the side `bank_side`.
+    bank_out: u16,
+    /// Side of the envelope the reading was last outside on: `1` above, `-1` below.
+    bank_side: i8,
+    /// The back-EMF allowance accumulated by the bank since its anchor \[A\].
+    bank_emf: f32,
+    /// Least-squares sums over the bank's window: `p p`, `p q`, `q q`, `p e`, `q e`.
+    fit: [f32; 5],
+    off_track: u32,
+    primed: bool,
+}
+
+impl State {
+    /// Forgets the history except the coil's I^2 t (the coil is still warm).
+    pub fn rearm(&mut self) {
+        *self = Self {
+            i2t_a2s: self.i2t_a2s,
+            ..Self::default()
+        };
+    }
+}
+
+/// What the detectors look at, once per tick.
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs {
+    /// Measured position \[m\].
+    pub x_m: f32,
+    /// Measured current \[A\].
+    pub i_a: f32,
+    /// Reference position \[m\].
+    pub r_m: f32,
+    /// Set point the reference is heading to \[m\].
+    pub target_m: f32,
+    /// Estimated velocity \[m/s\] (for the motional back-EMF).
+    pub v_mps: f32,
+}
+
+impl Config {
+    /// Runs every enabled detector; the first fault found, if any.
+    #[inline]
+    pub fn check(&self, st: &mut State, inp: &Inputs) -> Option<Fault> {
+        if !st.primed {
+            *st = State {
+                x_last: inp.x_m,
+                x_prev: inp.x_m,
+                r_at_change: inp.r_m,
+                r_prev: inp.r_m,
+                i_prev: inp.i_a,
+                primed: true,
+                ..State::default()
+            };
+            return None;
+        }
+        let fault = self
+            .thermal(st, inp)
+            .or_else(|| self.stuck(st, inp))
+            .or_else(|| self.residual(st, inp))
+            .or_else(|| self.tracking(st, inp));
+        st.i_prev = inp.i_a;
+        fault
+    }
+
+    /// Records the average voltage the bridge applied this tick (`driving = false` when
+    /// it coasts, where the coil voltage is set by the freewheeling current).
+    #[inline]
+    pub fn record_drive(&self, st: &mut State, u_v: f32, driving: bool) {
+        st.u_hist = [(u_v, driving), st.u_hist[0]];
+    }
+}

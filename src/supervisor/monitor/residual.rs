@@ -1,0 +1,219 @@
+//! The electrical residual: the corner bank, the fit and the one-step check (see the
+//! [monitors' documentation](super)).
+
+use super::{Config, Inputs, State};
+use crate::math;
+use crate::supervisor::Fault;
+
+/// Relative allowance on the motional back-EMF in the residual: the force coefficient
+/// anywhere in its bounds (at most +-25 % of nominal for +-20 % surfaces) and the
+/// velocity estimate's error during a move \[-\].
+pub const EMF_SPREAD: f32 = 0.5;
+
+/// Electrical residual (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct Residual {
+    /// Absolute widening of the admissible envelope (converter noise), in steps of the
+    /// current converter \[code\].
+    pub noise_codes: f32,
+    /// Relative widening of the admissible change \[-\].
+    pub margin: f32,
+    /// Consecutive ticks outside the envelope, on one side, before a fault \[tick\]
+    /// (at least 2).
+    pub confirm_ticks: u16,
+    /// One-step excess that no coil can produce \[A\].
+    pub jump_a: f32,
+    /// Current below which the coil counts as open \[A\].
+    pub open_a: f32,
+    /// Factor between "outside the bounds" and "broken" \[-\].
+    pub gross: f32,
+    /// Length of the corner bank's window \[tick\] (at least 2).
+    pub window: u16,
+}
+
+/// The four corner coils of a step: gain `k / (1 + R k / 2)` and resistance.
+type Corners = [(f32, f32); 4];
+
+impl Config {
+    pub(super) fn residual(&self, st: &mut State, inp: &Inputs) -> Option<Fault> {
+        let settings = self.monitors.residual.as_ref()?;
+        // The voltage between the two samples: the drive `delay` ticks before the newer.
+        let (u, driving) = if self.delayed {
+            st.u_hist[1]
+        } else {
+            st.u_hist[0]
+        };
+        if !driving {
+            st.jumped = false;
+            st.bank_ticks = 0;
+            return None;
+        }
+        let g = self.convention.gap_m(inp.x_m);
+        let i0 = st.i_prev;
+        // Applied voltage plus the motional back-EMF, with its allowance.
+        let emf = self.emf_sign * inp.v_mps * i0 * self.nominal.force_coefficient_h_per_m(g);
+        let u = u + emf;
+        let du = EMF_SPREAD * emf.abs();
+        // The four corner coils (L_lo or L_hi, R_lo or R_hi): gain and resistance of
+        // `di = k (u - R i) / (1 + R k / 2)`, with `k = Ts / L = Ts rho(g) / N^2`.
+        // `k_fast` (`Ts / L_lo`) is the larger gain, `k_slow` (`Ts / L_hi`) the smaller.
+        let (k_fast, k_slow) = (
+            self.ts_over_n2 * self.envelope.rho_hi(g),
+            self.ts_over_n2 * self.envelope.rho_lo(g),
+        );
+        let gain = |k: f32, res: f32| k / (1.0 + 0.5 * res * k);
+        let corners = [
+            (gain(k_fast, self.r_lo), self.r_lo),
+            (gain(k_fast, self.r_hi), self.r_hi),
+            (gain(k_slow, self.r_lo), self.r_lo),
+            (gain(k_slow, self.r_hi), self.r_hi),
+        ];
+        // Folds from +-inf, never NaN: the one-comparison running extremes are exact.
+        // Every gain is positive, so the least change takes the least voltage.
+        let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
+        for (f, res) in corners {
+            d_min = math::running_min(d_min, f * (u - du - res * i0));
+            d_max = math::running_max(d_max, f * (u + du - res * i0));
+        }
+        let d_meas = inp.i_a - i0;
+        // One step: beyond the interval by more than a coil `gross` times the fastest
+        // admissible one could explain, then back inside: the reading stepped.
+        let largest = math::running_max(d_min.abs(), d_max.abs());
+        let widen = settings.margin * largest + self.noise_a;
+        let (lo, hi) = (d_min - widen, d_max + widen);
+        let offset = st.jumped && !(d_meas < lo || d_meas > hi);
+        let reach = settings.jump_a + (settings.gross - 1.0) * largest;
+        st.jumped =
+            (d_meas > hi + reach || d_meas < lo - reach) && inp.i_a.abs() >= settings.open_a;
+        // The nominal prediction and the regressors of the fit.
+        let k = self.ts_over_n2 * self.nominal.reluctance_per_h(g);
+        let p = gain(k, self.r_nom) * (u - self.r_nom * i0);
+        let fit = (k * i0, d_meas - p, p);
+        let bank = self.bank(
+            settings,
+            st,
+            inp.i_a,
+            i0,
+            u,
+            du * gain(k_slow, self.r_lo),
+            &corners,
+            fit,
+        );
+        if offset {
+            return Some(Fault::CurrentOffset);
+        }
+        bank
+    }
+
+    /// The corner bank (see the module documentation): advances the four corner coils by
+    /// one period under `u` and compares the reading with their envelope, widened by the
+    /// back-EMF allowance `emf_a` of each period since the anchor; accumulates the fit's
+    /// sums with the regressor `q = k i`, the deviation `e` and the prediction `p`.
+    #[allow(clippy::too_many_arguments)]
+    fn bank(
+        &self,
+        settings: &Residual,
+        st: &mut State,
+        i_a: f32,
+        i0: f32,
+        u: f32,
+        emf_a: f32,
+        corners: &Corners,
+        (q, e, p): (f32, f32, f32),
+    ) -> Option<Fault> {
+        if st.bank_ticks == 0 || (st.bank_ticks >= settings.window && st.bank_out == 0) {
+            st.bank = [i0; 4];
+            st.bank_anchor = i0;
+            st.bank_ticks = 0;
+            st.bank_out = 0;
+            st.bank_side = 0;
+            st.bank_emf = 0.0;
+            st.fit = [0.0; 5];
+        }
+        st.bank_ticks = st.bank_ticks.saturating_add(1);
+        st.bank_emf += emf_a;
+        let [pp, pq, qq, pe, qe] = st.fit;
+        st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for (c, &(f, res)) in st.bank.iter_mut().zip(corners) {
+            *c += f * (u - res * *c);
+            lo = math::running_min(lo, *c);
+            hi = math::running_max(hi, *c);
+        }
+        let anchor = st.bank_anchor;
+        // Neither distance is NaN (the folds skip NaN, the anchor is a finite reading).
+        let spread = math::running_max((hi - anchor).abs(), (lo - anchor).abs());
+        let widen = settings.margin * spread + self.noise_a + st.bank_emf;
+        let side: i8 = if i_a > hi + widen {
+            1
+        } else if i_a < lo - widen {
+            -1
+        } else {
+            0
+        };
+        st.bank_out = if side == 0 {
+            0
+        } else if side == st.bank_side {
+            st.bank_out.saturating_add(1)
+        } else {
+            1
+        };
+        st.bank_side = side;
+        if st.bank_out < settings.confirm_ticks {
+            return None;
+        }
+        if i_a.abs() < settings.open_a {
+            // Every admissible coil is beyond the allowance on one side of the reading.
+            return Some(Fault::CoilOpen);
+        }
+        // The direction the admissible coils were driven: all up, all down, or holding.
+        let drive: i8 = if lo > anchor {
+            1
+        } else if hi < anchor {
+            -1
+        } else {
+            0
+        };
+        let along = (i_a - anchor) * f32::from(drive);
+        // `side` is 1 or -1 here (the reading is outside): opposite a drive that is not 0.
+        if drive != 0 && side != drive && along > -self.noise_a {
+            // Behind every admissible coil, and not against the drive. The least
+            // admissible change: every corner lies on the drive's side of the anchor and
+            // (rounding is monotonic) the nearest is `lo` when rising, `hi` when falling.
+            let least = if drive > 0 { lo - anchor } else { anchor - hi };
+            return Some(if along * settings.gross < least {
+                Fault::CurrentStuck
+            } else {
+                Fault::ModelBounds
+            });
+        }
+        // Ahead of the drive, against it, or away while holding: a coil that carries more
+        // current than any admissible one on this voltage.
+        Some(
+            if self.resistance_fit(&st.fit) < self.r_lo / settings.gross {
+                Fault::CoilShort
+            } else {
+                Fault::ModelBounds
+            },
+        )
+    }
+
+    /// Resistance fitted over the bank's window, `R_nom - b`; all of the deviation is
+    /// taken as resistance when the two regressors cannot be separated.
+    fn resistance_fit(&self, fit: &[f32; 5]) -> f32 {
+        let [pp, pq, qq, pe, qe] = *fit;
+        let det = pp * qq - pq * pq;
+        let b = if det > 1e-3 * pp * qq && det > 0.0 {
+            (pp * qe - pq * pe) / det
+        } else if qq > 0.0 {
+            // Proportional regressors (holding on a constant voltage): all resistance.
+            qe / qq
+        } else {
+            0.0
+        };
+        self.r_nom - b
+    }
+}

@@ -16,15 +16,13 @@
 #[path = "common/plant.rs"]
 mod plant;
 
-use ema::bridge::{HBridge, Mode, NullPin, NullPwm};
+use ema::bridge::{HBridge, Mode, NullPin, NullPwm, BOARD_MAX_DUTY as MAX_DUTY};
 use ema::control::Settings;
 use ema::sense::{Frame, ADC_MAX_CODE};
 use ema::supervisor::Fault;
 use proptest::prelude::*;
 use proptest::test_runner::{FileFailurePersistence, RngSeed, TestRunner};
 
-/// The PWM full scale of the firmware's timer (its compare value for 100 % duty).
-const MAX_DUTY: u16 = 4201;
 /// Ticks per case: 0.25 s at 20 kHz.
 const TICKS: usize = 5_000;
 const CASES: u32 = 48;

@@ -42,6 +42,12 @@
 //! * **Armed**: closed loop, holding the position measured when armed (with the link as
 //!   the set point's source) or following the analog set point.
 //! * **Moving**: armed, a move in progress (the reference shaping's).
+//! * **Commissioning** (entered from Disarmed by [`Command::Commission`], nothing
+//!   latched, sensors and bus ready): the loop open, the bridge driven by the coil's
+//!   identification ([`crate::commission`]); it returns to Disarmed when the result is in,
+//!   when any order other than a status, stream or capture arrives (the bridge coasts at
+//!   once), or to Fault when a fault latches (every tick still converts and checks the
+//!   codes and the limits).
 //! * **Fault**: a fault latched (by the tick, the guard, or the analog input's wire
 //!   check); the bridge coasts until the fault is cleared, which leaves the board
 //!   disarmed. Clearing is refused while the cause is still measured (a sensor
@@ -61,14 +67,15 @@ use heapless::spsc::{Consumer, Producer, Queue};
 
 use crate::analog::{self, Source as SetpointSource};
 use crate::bridge::{HBridge, Mode as BridgeMode};
+use crate::commission;
 use crate::control::{self, Status as TickStatus};
 use crate::guard::{self, End, Start};
 use crate::math;
 use crate::params::{Board, Params, Refused};
 use crate::protocol::{
-    self, CaptureState, Chunk, Command, FrameError, Framer, Invalid, LoadError, Message, Mode,
-    Refusal, Reply, Request, Sample, Signal, Source, Started, Status, StoreError, Telemetry,
-    Trigger, MAX_FRAME,
+    self, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid, LoadError,
+    Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status, StoreError,
+    Telemetry, Trigger, MAX_FRAME,
 };
 use crate::sense::{Frame, Measurement};
 use crate::store::Store;
@@ -141,6 +148,10 @@ pub enum Order {
     Disarmed,
     /// Use a new configuration (disarmed only).
     Install(Install),
+    /// Start a commissioning with this plan (disarmed only, see [`Command::Commission`]).
+    Commission(commission::Plan),
+    /// The last commissioning's outcome.
+    Commissioned,
 }
 
 /// An order and its number.
@@ -170,6 +181,8 @@ pub enum Outcome {
     Status(Status<'static>),
     /// Part of the capture.
     Chunk(Chunk),
+    /// The last commissioning's outcome.
+    Commissioned(Commissioned),
 }
 
 /// One telemetry sample and its tick.
@@ -318,6 +331,12 @@ pub struct Controller<C> {
     capture_trigger: Trigger,
     meta: Meta,
     cycles: Cycles,
+    /// The commissioning in progress (mode [`Mode::Commissioning`]).
+    identification: Option<commission::Identification>,
+    /// The last commissioning's outcome.
+    commissioned: Commissioned,
+    /// The voltage the last tick set the bridge to \[V\].
+    last_drive_v: f32,
 }
 
 impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
@@ -355,6 +374,9 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 window: 20_000,
                 ..Cycles::default()
             },
+            identification: None,
+            commissioned: Commissioned::Never,
+            last_drive_v: 0.0,
         }
     }
 
@@ -461,6 +483,9 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         let setpoint = self.setpoint_m;
         let frame = inputs.frame;
         let mut verdict = None;
+        let identification = &mut self.identification;
+        let last_drive_v = self.last_drive_v;
+        let mut identified = None;
         let outcome = self.guard.run(
             &mut self.guarded,
             cfg,
@@ -470,6 +495,8 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             |st, b| {
                 if armed {
                     cfg.tick(st, b, &frame, setpoint)
+                } else if let Some(id) = identification.as_mut() {
+                    commission_tick(cfg, id, st, b, &frame, last_drive_v, &mut identified)
                 } else {
                     let m = cfg.sense().convert(&frame);
                     verdict = match m {
@@ -491,8 +518,24 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         );
         let status = outcome.status;
         self.measurement = status.measurement;
+        self.last_drive_v = status.drive.u_v;
         if !armed {
             self.verdict = verdict;
+        }
+        if self.mode == Mode::Commissioning {
+            let ended = if self.state.supervisor.latched().is_some() {
+                Some(Err(commission::Abort::Fault))
+            } else {
+                identified
+            };
+            if let Some(r) = ended {
+                self.identification = None;
+                self.commissioned = match r {
+                    Ok(r) => Commissioned::Resistance(r),
+                    Err(a) => Commissioned::Aborted(a),
+                };
+                self.mode = Mode::Disarmed;
+            }
         }
         if self.state.supervisor.latched().is_some() {
             self.mode = Mode::Fault;
@@ -596,6 +639,18 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         restore_outputs: &mut bool,
     ) -> Outcome {
         let done = |r: Result<(), Refusal<'static>>| Outcome::Done(r);
+        if self.mode == Mode::Commissioning
+            && !matches!(
+                order,
+                Order::Status | Order::Commissioned | Order::Stream { .. } | Order::Capture { .. }
+            )
+        {
+            // Any other order ends a commissioning first (the bridge coasts at once).
+            let _ = bridge.coast();
+            self.identification = None;
+            self.commissioned = Commissioned::Aborted(commission::Abort::Stopped);
+            self.mode = Mode::Disarmed;
+        }
         match order {
             Order::Arm => {
                 if self.mode.armed() {
@@ -738,6 +793,22 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 self.analog_state = analog::State::default();
                 done(Ok(()))
             }
+            Order::Commission(plan) => {
+                if self.mode.armed() {
+                    return done(Err(Refusal::Armed));
+                }
+                if let Some(f) = self.state.supervisor.latched() {
+                    return done(Err(Refusal::Faulted { fault: f.code() }));
+                }
+                if let Some(f) = self.not_ready() {
+                    return done(Err(Refusal::NotReady { fault: f.code() }));
+                }
+                self.identification = Some(commission::Identification::new(plan));
+                self.commissioned = Commissioned::Running;
+                self.mode = Mode::Commissioning;
+                done(Ok(()))
+            }
+            Order::Commissioned => Outcome::Commissioned(self.commissioned),
         }
     }
 
@@ -771,6 +842,53 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             ..Status::default()
         }
     }
+}
+
+/// One commissioning tick: the codes converted and checked as in every tick (a fault
+/// latches and coasts), the identification's voltage applied, or the bridge coasted and
+/// the result handed out when it ends.
+fn commission_tick<P: SetDutyCycle, O: OutputPin>(
+    cfg: &control::Config,
+    id: &mut commission::Identification,
+    st: &mut control::State,
+    b: &mut HBridge<P, O>,
+    frame: &Frame,
+    last_drive_v: f32,
+    identified: &mut Option<Result<commission::Resistance, commission::Abort>>,
+) -> TickStatus {
+    let m = cfg.sense().convert(frame);
+    let mut status = TickStatus {
+        fault: st.supervisor.latched(),
+        measurement: m.unwrap_or_default(),
+        ..TickStatus::default()
+    };
+    let checked = match m {
+        Ok(m) => cfg.limits().check(&m).map_or(Ok(m), Err),
+        Err(f) => Err(f),
+    };
+    let step = match checked {
+        Ok(m) => id.step(&m, last_drive_v),
+        Err(f) => {
+            status.fault = Some(st.supervisor.trip(f));
+            commission::Step::Done(Err(commission::Abort::Fault))
+        }
+    };
+    match step {
+        commission::Step::Drive(u_v) => match b.apply(u_v, status.measurement.vbus_v) {
+            Ok(drive) => status.drive = drive,
+            Err(_) => {
+                status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
+                *identified = Some(Err(commission::Abort::Fault));
+            }
+        },
+        commission::Step::Done(r) => {
+            if b.coast().is_err() {
+                status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
+            }
+            *identified = Some(r);
+        }
+    }
+    status
 }
 
 /// Reads the stored parameters (the main loop's view of the store).
@@ -1081,6 +1199,26 @@ impl Dispatcher {
         self.pending = Some(Pending { seq, id, then });
     }
 
+    /// The commissioning plan for the parameters in use.
+    fn commission_plan(&self) -> Result<commission::Plan, Refusal<'static>> {
+        let a = &self.params.actuator;
+        let r = a.coil.resistance_ohm;
+        let t = a
+            .time_scales()
+            .map_err(|e| Refusal::Invalid(Invalid::from(e)))?;
+        // The position's noise at rest: the allowance the detectors use for the
+        // difference of two readings, twice (a window's extremes, not two readings).
+        let still_m = 2.0 * crate::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
+        commission::Plan::for_coil(
+            r,
+            t.coil_closed_s * r,
+            a.coil.rated_current_a,
+            self.board.rate_hz,
+            still_m,
+        )
+        .ok_or_else(|| Self::invalid("coil.resistance_ohm", r, crate::config::Reason::NotPositive))
+    }
+
     fn invalid(param: &'static str, value: f32, reason: crate::config::Reason) -> Refusal<'static> {
         Refusal::Invalid(Invalid::from(crate::config::Error {
             param,
@@ -1103,6 +1241,11 @@ impl Dispatcher {
             Command::Arm => self.order(seq, Order::Arm, then, ends),
             Command::Disarm => self.order(seq, Order::Disarm, then, ends),
             Command::Clear => self.order(seq, Order::Clear, then, ends),
+            Command::Commission => match self.commission_plan() {
+                Ok(plan) => self.order(seq, Order::Commission(plan), then, ends),
+                Err(r) => self.reply(seq, Reply::Refused(r)),
+            },
+            Command::Commissioned => self.order(seq, Order::Commissioned, then, ends),
             Command::Move { position_m, time_s } => {
                 let stroke = self.params.actuator.mechanics.stroke_m;
                 let refusal = if let Err(e) =
@@ -1301,6 +1444,7 @@ impl Dispatcher {
                 return;
             }
             Outcome::Chunk(c) => Reply::Capture(c),
+            Outcome::Commissioned(c) => Reply::Commissioned(c),
         };
         self.reply(p.seq, reply);
     }

@@ -23,6 +23,7 @@
 //! | [`law`] | the control laws: the paper's law and the practical variants |
 //! | [`supervisor`] | limits, latched faults, safe state |
 //! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
+//! | [`commission`] | measuring the actuator on the board: the coil's resistance from two voltage steps, loop open |
 //! | [`control`] | the configuration, the state and the one `tick` |
 //! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
 //! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
@@ -31,7 +32,7 @@
 //!
 //! | module | concept |
 //! |---|---|
-//! | [`device`] | states (disarmed, armed, moving, fault), the commands' dispatch, telemetry and capture around the tick |
+//! | [`device`] | states (disarmed, armed, moving, commissioning, fault), the commands' dispatch, telemetry and capture around the tick |
 //! | [`protocol`] | the bench link's messages (postcard) and frames (COBS and a CRC) |
 //! | [`params`] | every parameter by name, validated as at build time |
 //! | [`store`] | parameters in flash, power-fail safe, with a version and a CRC |
@@ -121,6 +122,7 @@
 pub mod actuator;
 pub mod analog;
 pub mod bridge;
+pub mod commission;
 pub mod config;
 pub mod control;
 pub mod device;

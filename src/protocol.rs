@@ -168,6 +168,12 @@ pub enum Command<'a> {
         /// First sample.
         offset: u16,
     },
+    /// Measures the coil's resistance with the loop open (see [`crate::commission`]):
+    /// disarmed only, with nothing latched and the sensors and bus ready. The board is
+    /// [`Mode::Commissioning`] until it ends; any fault or order ends it.
+    Commission,
+    /// The last commissioning's outcome ([`Reply::Commissioned`]).
+    Commissioned,
 }
 
 /// When a capture starts.
@@ -241,6 +247,21 @@ pub enum Reply<'a> {
     /// Not done, and why.
     #[serde(borrow)]
     Refused(Refusal<'a>),
+    /// The last commissioning's outcome: none yet, still running (`None`), or its result.
+    Commissioned(Commissioned),
+}
+
+/// A commissioning's outcome.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Commissioned {
+    /// None since the start.
+    Never,
+    /// In progress.
+    Running,
+    /// The coil's resistance.
+    Resistance(crate::commission::Resistance),
+    /// Stopped without a result.
+    Aborted(crate::commission::Abort),
 }
 
 /// Why a request was not carried out. Nothing changed on the board.
@@ -343,6 +364,8 @@ pub enum Mode {
     /// A fault is latched: bridge coasting until it is cleared (which leaves the board
     /// disarmed).
     Fault,
+    /// Commissioning: the loop open, the bridge driven by the identification.
+    Commissioning,
 }
 
 impl Mode {
@@ -354,6 +377,7 @@ impl Mode {
             Mode::Armed => "armed",
             Mode::Moving => "moving",
             Mode::Fault => "fault",
+            Mode::Commissioning => "commissioning",
         }
     }
 
@@ -365,6 +389,7 @@ impl Mode {
             Mode::Armed => 1,
             Mode::Moving => 2,
             Mode::Fault => 3,
+            Mode::Commissioning => 4,
         }
     }
 
@@ -376,6 +401,7 @@ impl Mode {
             1 => Some(Mode::Armed),
             2 => Some(Mode::Moving),
             3 => Some(Mode::Fault),
+            4 => Some(Mode::Commissioning),
             _ => None,
         }
     }
@@ -1070,10 +1096,11 @@ mod tests {
 
     #[test]
     fn modes_and_signals_have_stable_codes() {
-        for code in 0..4 {
+        for code in 0..5 {
             assert_eq!(Mode::from_code(code).unwrap().code(), code);
         }
-        assert_eq!(Mode::from_code(4), None);
+        assert_eq!(Mode::from_code(4), Some(Mode::Commissioning));
+        assert_eq!(Mode::from_code(5), None);
         for (k, s) in Signal::ALL.iter().enumerate() {
             assert_eq!(s.bit(), 1 << k);
         }

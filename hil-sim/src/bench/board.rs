@@ -78,6 +78,8 @@ pub enum Injection {
     },
     /// The power goes at this step of the next save (see [`Flash::cut_after`]).
     CutSave(u64),
+    /// The coil's resistance \[ohm\] (a winding off its datasheet, or warm).
+    Resistance(f64),
 }
 
 /// The plant side: what the firmware's timer, converter and bridge see.
@@ -269,6 +271,7 @@ impl VirtualBoard {
                 self.plant.analog_code = (value / per_code).round().clamp(0.0, 4095.0) as u16;
             }
             Injection::CutSave(step) => self.save_cut = Some(step),
+            Injection::Resistance(r) => self.plant.stepper.set_resistance_ohm(r),
         }
     }
 

@@ -24,9 +24,11 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Context};
 use clap::{Parser, Subcommand};
 use ema::actuator::{Actuator, Magnetics};
+use ema::commission::Resistance;
 use ema::params::{self, Kind, Params};
 use ema::protocol::{
-    CaptureState, Command, Message, Mode, Reply, Signal, Status, Trigger, Value, CHUNK_SAMPLES,
+    CaptureState, Command, Commissioned, Message, Mode, Reply, Signal, Status, Trigger, Value,
+    CHUNK_SAMPLES,
 };
 use serialport::SerialPort;
 
@@ -96,8 +98,22 @@ pub enum Verb {
     Watch(WatchArgs),
     /// Captures a move's response and compares it with the simulator's prediction.
     Capture(CaptureArgs),
+    /// Measures the coil's resistance with the loop open (disarmed, nothing latched).
+    Commission(CommissionArgs),
     /// Runs the virtual board on a pseudo-terminal.
     Virtual(VirtualArgs),
+}
+
+/// Arguments of `commission`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CommissionArgs {
+    /// Also set `coil.resistance_ohm` to the measured value (validated as any `set`; not
+    /// stored until `save`).
+    #[arg(long)]
+    pub apply: bool,
+    /// Longest wait for the result (s).
+    #[arg(long, default_value_t = 60.0)]
+    pub timeout_s: f64,
 }
 
 /// Arguments of `watch`.
@@ -291,6 +307,9 @@ pub fn run<P: std::io::Read + Write>(
         Verb::Capture(a) => {
             capture(link, &a, out)?;
         }
+        Verb::Commission(a) => {
+            commission(link, &a, out)?;
+        }
         Verb::Virtual(_) => bail!("`virtual` runs on its own"),
     }
     Ok(())
@@ -313,6 +332,69 @@ pub fn status<P: std::io::Read + Write>(link: &mut Link<P>) -> anyhow::Result<St
         }),
         other => Err(anyhow!("unexpected reply: {other:?}")),
     }
+}
+
+/// Runs a commissioning and waits for its outcome; prints it, and with `apply` sets the
+/// measured resistance.
+///
+/// # Errors
+/// Refused, stopped (with the board's reason), no outcome within the timeout, or (with
+/// `apply`) the value refused.
+pub fn commission<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    args: &CommissionArgs,
+    out: &mut dyn Write,
+) -> anyhow::Result<Resistance> {
+    let file_r = match get(link, "coil.resistance_ohm")? {
+        Value::Number(r) => r,
+        other => bail!("coil.resistance_ohm is not a number: {other:?}"),
+    };
+    link.done(Command::Commission)?;
+    let start = Instant::now();
+    let r = loop {
+        let f = link.request(Command::Commissioned)?;
+        let mut scratch = Vec::new();
+        match f.message(&mut scratch)? {
+            Message::Reply {
+                reply: Reply::Commissioned(c),
+                ..
+            } => match c {
+                Commissioned::Resistance(r) => break r,
+                Commissioned::Aborted(a) => bail!("commissioning stopped: {}", a.name()),
+                Commissioned::Never => bail!("the board never started the commissioning"),
+                Commissioned::Running => {}
+            },
+            other => bail!("unexpected reply: {other:?}"),
+        }
+        if start.elapsed().as_secs_f64() > args.timeout_s {
+            bail!("no outcome after {} s", args.timeout_s);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    writeln!(
+        out,
+        "coil resistance {:.4} ohm +- {:.4} (two standard errors); the file says {file_r} ohm ({:+.1} %)",
+        r.ohm,
+        r.spread_ohm,
+        100.0 * (r.ohm / file_r - 1.0)
+    )?;
+    writeln!(
+        out,
+        "steps: {:.3} V -> {:.4} A, {:.3} V -> {:.4} A, bus {:.2} V",
+        r.u_v[0], r.i_a[0], r.u_v[1], r.i_a[1], r.vbus_v
+    )?;
+    if args.apply {
+        link.done(Command::Set {
+            name: "coil.resistance_ohm",
+            value: Value::Number(r.ohm),
+        })?;
+        writeln!(
+            out,
+            "coil.resistance_ohm = {} (not stored until `save`)",
+            r.ohm
+        )?;
+    }
+    Ok(r)
 }
 
 /// A status as the `status` command prints it.

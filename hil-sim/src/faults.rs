@@ -19,6 +19,9 @@
 //! interrupt runs again (the gap is five periods), and an interrupt that stops for good,
 //! while the coil is driven, is ended by the watchdog, which coasts the bridge at the first
 //! sample instant at least its early-wakeup time (292.6 us at 20 kHz) after the last feed.
+//!
+//! [`random`] injects each case again at random instants over the sequence, on plants
+//! drawn from the controller's uncertainty set, and [`Spread`] gathers how they were found.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -28,7 +31,7 @@ use ema::supervisor::Fault;
 
 use crate::error::Error;
 use crate::plant::Surface;
-use crate::scenario::{Injected, TruePlant};
+use crate::scenario::{Injected, Sensors, TruePlant, Uncertainty};
 use crate::{run, Scenario};
 
 /// Detection deadline \[s\] (20 ticks at 20 kHz).
@@ -310,4 +313,148 @@ pub fn evaluate(case: &Case) -> Result<Outcome, Error> {
 /// A scenario that does not validate.
 pub fn table(base: &Scenario) -> Result<Vec<Outcome>, Error> {
     cases(base)?.par_iter().map(evaluate).collect()
+}
+
+/// One case injected at random instants on drawn plants: how it was found.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Spread {
+    /// Case name.
+    pub name: String,
+    /// Expected fault.
+    pub expected: String,
+    /// Injections.
+    pub n: usize,
+    /// Injections whose outcome passes ([`Outcome::pass`]).
+    pub pass: usize,
+    /// Detection times of the injections named as expected, after the injection, sorted
+    /// \[s\].
+    pub detected_s: Vec<f64>,
+    /// Injections named as expected within [`DEADLINE_S`].
+    pub within_deadline: usize,
+    /// Injections after which a different fault was latched (after the injection), by
+    /// fault name.
+    pub misnamed: Vec<(String, usize)>,
+    /// Injections after which nothing was latched by the end of the run.
+    pub unnamed: usize,
+    /// Injections with a fault latched before them (a false alarm on the drawn plant).
+    pub before: usize,
+    /// Injections after which the bridge did not coast at every sample.
+    pub not_coasting: usize,
+    /// Largest coil current over all the runs \[A\].
+    pub peak_current_a: f64,
+    /// Trip level \[A\].
+    pub trip_a: f64,
+}
+
+impl Spread {
+    /// The `q` quantile (`0..=1`, nearest rank) of the detection times \[s\].
+    #[must_use]
+    pub fn quantile_s(&self, q: f64) -> Option<f64> {
+        let n = self.detected_s.len();
+        if n == 0 {
+            return None;
+        }
+        #[allow(
+            clippy::cast_precision_loss,
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss
+        )]
+        let k = ((q.clamp(0.0, 1.0) * n as f64).ceil() as usize).clamp(1, n);
+        self.detected_s.get(k - 1).copied()
+    }
+}
+
+/// Each case of [`cases`] but the plant outside the bounds (a plant, not an instant)
+/// injected `n` times on `base`: injection `k` on the plant drawn from the controller's
+/// uncertainty set with seed `crate::montecarlo::draw_seed(seed, k)` (the converter noise
+/// seeded likewise), at an instant on the ISR grid drawn uniformly (from the same seed)
+/// between the first move and 20 ms before the sequence ends. The same `n` plants and
+/// instants serve every case. Runs in parallel.
+///
+/// # Errors
+/// As [`cases`]; a scenario that does not validate.
+pub fn random(base: &Scenario, n: usize, seed: u64) -> Result<Vec<Spread>, Error> {
+    use rand::{Rng, SeedableRng};
+    let all = cases(base)?;
+    let crate::Reference::Sequence { steps, .. } = &base.reference else {
+        return Err(Error::param("reference", f64::NAN, "needs a sequence"));
+    };
+    let start_s = steps.first().map_or(0.0, |s| s.at_s);
+    let end_s = base.duration_s - 0.02;
+    let rate_hz = base.rate_hz();
+    let uncertainty = Uncertainty::of(&base.controller.plant);
+    let draws: Vec<(u64, f64)> = (0..n)
+        .map(|k| {
+            let seed = crate::montecarlo::draw_seed(seed, k);
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(seed ^ 0xFA17);
+            let t = rng.random_range(start_s..end_s);
+            (seed, (t * rate_hz).round() / rate_hz)
+        })
+        .collect();
+    all.iter()
+        .filter(|c| matches!(c.scenario.plant, TruePlant::Nominal { .. }))
+        .map(|c| {
+            let outcomes = draws
+                .par_iter()
+                .map(|&(seed, at_s)| {
+                    let mut sc = c.scenario.clone().with_duration_s(at_s + 0.02);
+                    for f in &mut sc.faults {
+                        f.at_s = at_s;
+                    }
+                    sc.plant = TruePlant::Drawn { seed, uncertainty };
+                    if let Sensors::Adc(adc) = &mut sc.sensors {
+                        adc.seed = seed;
+                    }
+                    evaluate(&Case {
+                        scenario: sc,
+                        at_s,
+                        ..c.clone()
+                    })
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(spread(c, &outcomes))
+        })
+        .collect()
+}
+
+fn spread(c: &Case, outcomes: &[Outcome]) -> Spread {
+    let expected = c.expected.name();
+    let mut s = Spread {
+        name: c.name.to_owned(),
+        expected: expected.to_owned(),
+        n: outcomes.len(),
+        pass: 0,
+        detected_s: Vec::new(),
+        within_deadline: 0,
+        misnamed: Vec::new(),
+        unnamed: 0,
+        before: 0,
+        not_coasting: 0,
+        peak_current_a: 0.0,
+        trip_a: f64::from(c.scenario.controller.limits.current_trip_a),
+    };
+    for o in outcomes {
+        s.pass += usize::from(o.pass());
+        s.peak_current_a = if o.peak_current_a.is_nan() {
+            f64::NAN
+        } else {
+            s.peak_current_a.max(o.peak_current_a)
+        };
+        s.not_coasting += usize::from(!o.coasting);
+        match (&o.fault, o.detected_after_s) {
+            (Some(_), Some(t)) if t < 0.0 => s.before += 1,
+            (Some(f), Some(t)) if f == expected => {
+                s.detected_s.push(t);
+                s.within_deadline += usize::from(t <= DEADLINE_S);
+            }
+            (Some(f), _) => match s.misnamed.iter_mut().find(|(k, _)| k == f) {
+                Some((_, n)) => *n += 1,
+                None => s.misnamed.push((f.clone(), 1)),
+            },
+            (None, _) => s.unnamed += 1,
+        }
+    }
+    s.detected_s.sort_by(f64::total_cmp);
+    s.misnamed.sort();
+    s
 }

@@ -345,6 +345,69 @@ pub struct ChannelError {
     pub noise_rms_code: f64,
 }
 
+/// A calibration class: how far a production board's converter channels may be from the
+/// calibration its firmware carries. Each channel's gain error is uniform within
+/// `+-gain_rel` and its offset uniform within `+-offset_code` codes, drawn independently
+/// per channel. The defaults, +-0.5 % and +-2 codes on the position, current and bus
+/// channels, are the class the Monte Carlo's `--sensor-errors` draws from.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationClass {
+    /// Largest relative gain error of a channel \[-\].
+    pub gain_rel: f64,
+    /// Largest offset of a channel \[code\].
+    pub offset_code: f64,
+}
+
+impl Default for CalibrationClass {
+    /// +-0.5 % gain, +-2 codes offset.
+    fn default() -> Self {
+        Self {
+            gain_rel: 0.005,
+            offset_code: 2.0,
+        }
+    }
+}
+
+impl CalibrationClass {
+    /// One channel's gain and offset drawn from the class (noise zero).
+    pub fn draw_channel<R: rand::Rng + ?Sized>(&self, rng: &mut R) -> ChannelError {
+        let g = self.gain_rel.abs();
+        let o = self.offset_code.abs();
+        ChannelError {
+            gain_error: rng.random_range(-g..=g),
+            offset_code: rng.random_range(-o..=o),
+            noise_rms_code: 0.0,
+        }
+    }
+
+    /// `adc` with every channel's gain and offset drawn from the class (position, current,
+    /// bus, in that order) by a PCG64 generator seeded by `seed`; the noise, resolution and
+    /// delay are kept.
+    #[must_use]
+    pub fn apply(&self, adc: &Adc, seed: u64) -> Adc {
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let mut out = *adc;
+        for ch in [&mut out.position, &mut out.current, &mut out.vbus] {
+            let e = self.draw_channel(&mut rng);
+            ch.gain_error = e.gain_error;
+            ch.offset_code = e.offset_code;
+        }
+        out
+    }
+}
+
+/// The sensor's share of the steady position error at `x_ref_m` \[m\]: where the true
+/// position is when the converter's mean reading (noise and quantisation averaged out) is
+/// exactly `x_ref_m`, minus `x_ref_m`. A channel with gain error `g` and offset `e` codes
+/// reads `x (1 + g) + e * scale`, so a controller that holds the reading on the reference
+/// holds the armature at `(x_ref - e * scale) / (1 + g)`: no controller acting on this
+/// reading can remove it.
+#[must_use]
+pub fn sensor_position_error_m(ch: &Channel, err: &ChannelError, x_ref_m: f64) -> f64 {
+    (x_ref_m - err.offset_code * f64::from(ch.scale)) / (1.0 + err.gain_error) - x_ref_m
+}
+
 /// The analog front end and converter: the ideal transfer is the controller's calibration
 /// (`code = value / scale + offset`); this adds gain error, offset, Gaussian noise,
 /// quantisation to `resolution_bits` and a delay of whole samples.
@@ -544,6 +607,40 @@ mod tests {
         assert_eq!(lines.duty(), 1000);
         b.coast().unwrap();
         assert_eq!(lines.switches(), Switches::Coast);
+    }
+
+    #[test]
+    fn the_calibration_class_stays_within_its_limits_and_its_share_is_exact() {
+        let class = CalibrationClass::default();
+        let adc = class.apply(&Adc::typical(), 7);
+        for ch in [adc.position, adc.current, adc.vbus] {
+            assert!(
+                ch.gain_error.abs() <= 0.005 && ch.offset_code.abs() <= 2.0,
+                "{ch:?}"
+            );
+            assert_eq!(ch.noise_rms_code, f64::from(ema::sense::NOISE_RMS_CODES));
+        }
+        assert_ne!(adc.position, adc.current);
+        // Without noise, a reading held on the reference puts the armature at the
+        // reference plus the share: the converter reads the reference there.
+        let cal = Calibration::board().position;
+        let err = ChannelError {
+            gain_error: 0.004,
+            offset_code: -1.5,
+            noise_rms_code: 0.0,
+        };
+        let x_ref = 2e-3;
+        let x = x_ref + sensor_position_error_m(&cal, &err, x_ref);
+        let read = (x * (1.0 + err.gain_error) / f64::from(cal.scale) + err.offset_code)
+            * f64::from(cal.scale);
+        assert!((read - x_ref).abs() < 1e-12, "{read} {x_ref}");
+        // 0.4 % gain alone: about 0.4 % of the reference.
+        let gain_only = ChannelError {
+            offset_code: 0.0,
+            ..err
+        };
+        let share = sensor_position_error_m(&cal, &gain_only, x_ref) / x_ref;
+        assert!((share + 0.004 / 1.004).abs() < 1e-12, "{share}");
     }
 
     #[test]

@@ -210,6 +210,8 @@ fn montecarlo_run(
         seed,
         rate_hz,
         substeps: None,
+        sensor_errors: false,
+        spread: 1.0,
         quiet: true,
         output: Output { out },
     };
@@ -350,6 +352,8 @@ fn faults_prints_and_writes_the_table() {
         actuator: "product".into(),
         rate_hz: None,
         supply_v: None,
+        random: None,
+        seed: 1,
         output: Output {
             out: Some(out.clone()),
         },
@@ -408,4 +412,43 @@ fn golden_names_a_missing_folder() {
     };
     let e = golden::run(&args, &mut Vec::new()).unwrap_err();
     assert!(e.to_string().contains("/no/such/folder"), "{e}");
+}
+
+/// Converter errors from the calibration class on 40 drawn plants of the product: the
+/// sensor's share of the steady error stays within what the class allows at the smallest
+/// reference, and what is left (the controller's part) meets the steady-error target on
+/// every draw, its overshoot past the shifted end the overshoot target; nothing faults.
+#[test]
+fn montecarlo_with_converter_errors_keeps_the_sensor_share_apart() {
+    let args = montecarlo::Args {
+        scenario: "product".into(),
+        n: 40,
+        seed: 1,
+        rate_hz: None,
+        substeps: None,
+        sensor_errors: true,
+        spread: 1.0,
+        quiet: true,
+        output: Output {
+            out: Some(dir("montecarlo-sensor-errors")),
+        },
+    };
+    let mut printed = Vec::new();
+    let o = montecarlo::run(&args, &mut printed).unwrap();
+    let printed = String::from_utf8(printed).unwrap();
+    let s = o.sensor.expect("converter errors drawn");
+    // +-0.5 % gain and +-2 codes of ~1.33 um at the smallest reference (0.5 mm): 1.04 %.
+    assert!(
+        s.worst_sensor_pct > 0.1 && s.worst_sensor_pct < 1.04,
+        "{printed}"
+    );
+    assert!(s.worst_controller_pct < 0.1, "{printed}");
+    assert!(s.worst_controller_overshoot_pct < 0.5, "{printed}");
+    assert_eq!(s.other_misses, 0, "{printed}");
+    assert_eq!(o.classes.fault_not_coasting, 0, "{printed}");
+    assert!(o.classes.faults.is_empty(), "{printed}");
+    assert!(
+        printed.contains("only because of the sensor's share"),
+        "{printed}"
+    );
 }

@@ -6,7 +6,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::faults::{table as run_cases, Outcome as Case, DEADLINE_S};
+use crate::faults::{random, table as run_cases, Outcome as Case, Spread, DEADLINE_S};
 use crate::report::{self, sig, Table};
 
 /// Arguments of `faults`.
@@ -21,6 +21,12 @@ pub struct Args {
     /// Supply (V; default: the actuator's).
     #[arg(long)]
     pub supply_v: Option<f64>,
+    /// Inject each case this many times at random instants on drawn plants.
+    #[arg(long)]
+    pub random: Option<usize>,
+    /// Seed of the random injections (plants and instants).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Output folder [default: out/faults].
     #[command(flatten)]
     pub output: super::Output,
@@ -33,6 +39,8 @@ pub struct Outcome {
     pub cases: Vec<Case>,
     /// The table printed.
     pub table: Table,
+    /// With `--random`: one entry per case.
+    pub random: Vec<Spread>,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -66,6 +74,56 @@ pub fn table(cases: &[Case]) -> Table {
     t
 }
 
+/// The random-injection table.
+#[must_use]
+pub fn random_table(spreads: &[Spread]) -> Table {
+    let mut t = Table::new([
+        "fault injected",
+        "expected",
+        "n",
+        "pass",
+        "named within deadline [%]",
+        "detection median / p99 / max [us]",
+        "misnamed",
+        "not named",
+        "latched before",
+        "not coasting",
+        "peak current [A] (trip)",
+    ]);
+    let us = |v: Option<f64>| v.map_or_else(|| "-".into(), |s| sig(s * 1e6, 3));
+    for s in spreads {
+        #[allow(clippy::cast_precision_loss)]
+        let share = 100.0 * s.within_deadline as f64 / s.n.max(1) as f64;
+        t.push([
+            s.name.clone(),
+            s.expected.clone(),
+            s.n.to_string(),
+            s.pass.to_string(),
+            sig(share, 4),
+            format!(
+                "{} / {} / {}",
+                us(s.quantile_s(0.5)),
+                us(s.quantile_s(0.99)),
+                us(s.quantile_s(1.0))
+            ),
+            if s.misnamed.is_empty() {
+                "0".into()
+            } else {
+                s.misnamed
+                    .iter()
+                    .map(|(k, n)| format!("{k} {n}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            },
+            s.unnamed.to_string(),
+            s.before.to_string(),
+            s.not_coasting.to_string(),
+            format!("{} ({})", sig(s.peak_current_a, 4), sig(s.trip_a, 4)),
+        ]);
+    }
+    t
+}
+
 /// Runs the cases and writes the table.
 ///
 /// # Errors
@@ -81,6 +139,34 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         act = act.with_supply_v(v as f32);
     }
     let base = crate::actuator::scenario(&name, &act)?;
+    if let Some(n) = args.random {
+        anyhow::ensure!(n > 0, "--random 0: inject at least once");
+        let spreads = random(&base, n, args.seed)?;
+        let table = random_table(&spreads);
+        writeln!(
+            out,
+            "fault injection on `{name}` at {} kHz on {} V: each case {n} times at random \
+             instants between the first move and 20 ms before the end of the sequence, on \
+             plants drawn from the controller's uncertainty set, seed {}; deadline {} us\n",
+            sig(base.rate_hz() / 1e3, 3),
+            sig(base.supply.voltage_v, 3),
+            args.seed,
+            sig(DEADLINE_S * 1e6, 4)
+        )?;
+        write!(out, "{}", table.to_text())?;
+        let dir = args.output.dir(&format!("{name}-faults-random"));
+        report::create_dir(&dir)?;
+        let path = dir.join("faults-random.csv");
+        table.write_csv(&path)?;
+        let files = vec![path];
+        super::list_files(out, &files)?;
+        return Ok(Outcome {
+            cases: Vec::new(),
+            table,
+            random: spreads,
+            files,
+        });
+    }
     let cases = run_cases(&base)?;
     let table = table(&cases);
     writeln!(
@@ -102,6 +188,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     Ok(Outcome {
         cases,
         table,
+        random: Vec::new(),
         files,
     })
 }

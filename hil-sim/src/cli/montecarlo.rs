@@ -10,15 +10,23 @@
 //! After the draws, the draws that hold a worst case ([`worst_draws`]) are checked the same
 //! way; when one needs more substeps, the draws run again with that many, and the output
 //! says so.
+//!
+//! `--sensor-errors` draws each plant's converter gain and offset errors from the
+//! calibration class ([`crate::hal::CalibrationClass`], +-0.5 % and +-2 codes per channel);
+//! the targets stay judged on the true position, and the output gives apart the sensor's
+//! share of the steady error ([`crate::hal::sensor_position_error_m`]) and the draws that
+//! miss only because of it. `--spread K` draws the plant beyond the controller's
+//! tolerances (spreads times `K`) and sorts every draw into pass, named fault with the
+//! bridge coasting, or silent failure ([`Class`]).
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use crate::accuracy::{self, TOLERANCE_REL};
-use crate::montecarlo::{draw_seed, montecarlo_with};
+use crate::hal::CalibrationClass;
+use crate::montecarlo::{montecarlo_opts, Options};
 use crate::plant::{ForceModel, Surface};
 use crate::report::{self, sig, Table, METRICS_COLUMNS};
-use crate::scenario::{TruePlant, Uncertainty};
 use crate::targets::{Targets, Worst};
 use crate::{catalog, Draw, Segment};
 
@@ -42,6 +50,14 @@ pub struct Args {
     /// draws holding a worst case].
     #[arg(long)]
     pub substeps: Option<u32>,
+    /// Draw each plant's converter gain and offset errors from the calibration class
+    /// (+-0.5 % gain, +-2 codes offset on the position, current and bus channels).
+    #[arg(long)]
+    pub sensor_errors: bool,
+    /// Factor on the plant spreads (resistance, spring, mass, friction) beyond the
+    /// controller's tolerances; 1 is the design set.
+    #[arg(long, default_value_t = 1.0)]
+    pub spread: f64,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -66,6 +82,10 @@ pub struct Outcome {
     pub targets: Table,
     /// Draws that miss at least one target.
     pub failing: usize,
+    /// With `--sensor-errors`: the sensor's share apart.
+    pub sensor: Option<SensorSummary>,
+    /// Every draw sorted into pass, named fault or silent failure.
+    pub classes: Classes,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -295,6 +315,207 @@ pub fn draws_table(draws: &[Draw]) -> Table {
     t
 }
 
+/// With converter errors, the steady error on the true position split into the sensor's
+/// share and the rest, over the step segments of every draw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorSummary {
+    /// Worst `|steady error|` on the true position \[% of the reference\].
+    pub worst_true_pct: f64,
+    /// Worst `|sensor's share|` \[% of the reference\].
+    pub worst_sensor_pct: f64,
+    /// Worst `|steady error - sensor's share|`: the controller's part \[%\].
+    pub worst_controller_pct: f64,
+    /// Worst overshoot past the end the sensor's share shifts the armature to (the
+    /// controller's part of the overshoot) \[% of the step\].
+    pub worst_controller_overshoot_pct: f64,
+    /// Draws missing the steady-error target.
+    pub steady_misses: usize,
+    /// Draws whose only misses are the steady error and the overshoot, each met by its
+    /// controller part: they miss only because of the sensor's share.
+    pub sensor_only: usize,
+    /// Draws missing a target for another reason.
+    pub other_misses: usize,
+}
+
+/// The [`SensorSummary`] of draws run with converter errors (draws without are skipped).
+/// A NaN metric counts as the worst.
+#[must_use]
+pub fn sensor_summary(draws: &[Draw], t: &Targets) -> SensorSummary {
+    let worse = |a: f64, b: f64| {
+        if a.is_nan() || b.is_nan() {
+            f64::NAN
+        } else {
+            a.max(b)
+        }
+    };
+    let mut s = SensorSummary {
+        worst_true_pct: 0.0,
+        worst_sensor_pct: 0.0,
+        worst_controller_pct: 0.0,
+        worst_controller_overshoot_pct: 0.0,
+        steady_misses: 0,
+        sensor_only: 0,
+        other_misses: 0,
+    };
+    for d in draws {
+        let Some(sensor) = &d.sensor else { continue };
+        let (mut controller, mut overshoot) = (0.0_f64, 0.0_f64);
+        for (k, seg) in d.metrics.segments.iter().enumerate() {
+            let step = seg.spec.to_m - seg.spec.from_m;
+            if step == 0.0 {
+                continue;
+            }
+            let share = sensor.steady_error_pct.get(k).copied().unwrap_or(f64::NAN);
+            s.worst_true_pct = worse(s.worst_true_pct, seg.steady_error_pct.abs());
+            s.worst_sensor_pct = worse(s.worst_sensor_pct, share.abs());
+            controller = worse(controller, (seg.steady_error_pct - share).abs());
+            // The sensor's share moves the end the armature settles at; past that end is
+            // the controller's overshoot.
+            let past = sensor
+                .controller_overshoot_pct
+                .get(k)
+                .copied()
+                .unwrap_or(f64::NAN);
+            overshoot = worse(overshoot, past);
+        }
+        s.worst_controller_pct = worse(s.worst_controller_pct, controller);
+        s.worst_controller_overshoot_pct = worse(s.worst_controller_overshoot_pct, overshoot);
+        let misses = Worst::of([&d.metrics], t).misses(t);
+        let steady = misses.contains(&"steady error");
+        s.steady_misses += usize::from(steady);
+        let only_sensor_kinds = misses
+            .iter()
+            .all(|m| *m == "steady error" || *m == "overshoot");
+        if !misses.is_empty()
+            && only_sensor_kinds
+            && controller <= t.steady_error_pct
+            && overshoot <= t.overshoot_pct
+        {
+            s.sensor_only += 1;
+        } else if !misses.is_empty() {
+            s.other_misses += 1;
+        }
+    }
+    s
+}
+
+/// What became of one draw.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Class {
+    /// Every target met, no fault.
+    Pass,
+    /// A fault latched (named), the bridge coasting from then on when `coasting`.
+    Fault {
+        /// The fault's name.
+        name: &'static str,
+        /// The bridge coasted at every sample from the fault on.
+        coasting: bool,
+    },
+    /// A target missed (steady error, overshoot, peak current...) with no fault latched.
+    Silent(Vec<&'static str>),
+}
+
+/// Sorts a draw.
+#[must_use]
+pub fn classify(d: &Draw, t: &Targets) -> Class {
+    if let Some(f) = d.metrics.first_fault {
+        return Class::Fault {
+            name: f.fault.map_or("unnamed", ema::supervisor::Fault::name),
+            coasting: d.coasting_after_fault,
+        };
+    }
+    let misses = Worst::of([&d.metrics], t).misses(t);
+    if misses.is_empty() {
+        Class::Pass
+    } else {
+        Class::Silent(misses)
+    }
+}
+
+/// The draws sorted ([`classify`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Classes {
+    /// Draws.
+    pub n: usize,
+    /// Draws that meet every target.
+    pub pass: usize,
+    /// Named faults with the bridge coasting, by fault name (sorted by name).
+    pub faults: Vec<(&'static str, usize)>,
+    /// Faults after which the bridge did not coast at every sample.
+    pub fault_not_coasting: usize,
+    /// Silent failures.
+    pub silent: usize,
+    /// The silent failures' misses, by target name (sorted by name).
+    pub silent_misses: Vec<(&'static str, usize)>,
+}
+
+impl Classes {
+    /// Draws ending in a named fault with the bridge coasting.
+    #[must_use]
+    pub fn named(&self) -> usize {
+        self.faults.iter().map(|(_, n)| n).sum()
+    }
+
+    /// The named faults as `name n, name n` (`-` when none).
+    #[must_use]
+    pub fn mix(&self) -> String {
+        list(&self.faults)
+    }
+
+    /// The silent failures' misses as `target n, ...` (`-` when none).
+    #[must_use]
+    pub fn silent_mix(&self) -> String {
+        list(&self.silent_misses)
+    }
+}
+
+fn list(v: &[(&'static str, usize)]) -> String {
+    if v.is_empty() {
+        "-".into()
+    } else {
+        v.iter()
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+fn bump(v: &mut Vec<(&'static str, usize)>, key: &'static str) {
+    match v.iter_mut().find(|(k, _)| *k == key) {
+        Some((_, n)) => *n += 1,
+        None => {
+            v.push((key, 1));
+            v.sort_unstable();
+        }
+    }
+}
+
+/// Every draw sorted.
+#[must_use]
+pub fn classify_all(draws: &[Draw], t: &Targets) -> Classes {
+    let mut c = Classes {
+        n: draws.len(),
+        ..Classes::default()
+    };
+    for d in draws {
+        match classify(d, t) {
+            Class::Pass => c.pass += 1,
+            Class::Fault {
+                name,
+                coasting: true,
+            } => bump(&mut c.faults, name),
+            Class::Fault { .. } => c.fault_not_coasting += 1,
+            Class::Silent(misses) => {
+                c.silent += 1;
+                for m in misses {
+                    bump(&mut c.silent_misses, m);
+                }
+            }
+        }
+    }
+    c
+}
+
 /// Runs the Monte Carlo and writes its report.
 ///
 /// # Errors
@@ -309,19 +530,21 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         None => format!("{}-montecarlo", sc.name),
         Some(r) => format!("{}-{}khz-montecarlo", sc.name, sig(r / 1e3, 3)),
     });
-    let uncertainty = match &sc.plant {
-        TruePlant::Drawn { uncertainty, .. } => *uncertainty,
-        _ => Uncertainty::of(&sc.controller.plant),
+    anyhow::ensure!(
+        args.spread.is_finite() && args.spread > 0.0,
+        "--spread = {}: a positive factor",
+        args.spread
+    );
+    let options = Options {
+        sensor_errors: args.sensor_errors.then(CalibrationClass::default),
+        spread: args.spread,
     };
     let substeps = if let Some(n) = args.substeps {
         anyhow::ensure!(n > 0, "--substeps = 0: at least one RK4 step per period");
         writeln!(out, "RK4 substeps per period: {n} (--substeps)")?;
         n
     } else {
-        let first = sc.clone().with_plant(TruePlant::Drawn {
-            seed: draw_seed(args.seed, 0),
-            uncertainty,
-        });
+        let (first, _) = options.scenario(&sc, args.seed, 0)?;
         let a = accuracy::fewest_substeps(&first, sc.integration.substeps, TOLERANCE_REL)?;
         writeln!(
             out,
@@ -346,8 +569,29 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         args.n,
         args.seed
     )?;
+    if args.spread != 1.0 {
+        let u = options.uncertainty(&sc);
+        writeln!(
+            out,
+            "plant spreads {} times the controller's: R +-{} %, K +-{} %, m +-{} %, lambda \
+             +-{} % (pole surfaces within the physical bounds)",
+            sig(args.spread, 3),
+            sig(100.0 * u.resistance_rel, 3),
+            sig(100.0 * u.spring_rel, 3),
+            sig(100.0 * u.mass_rel, 3),
+            sig(100.0 * u.friction_rel, 3)
+        )?;
+    }
+    if let Some(c) = options.sensor_errors {
+        writeln!(
+            out,
+            "converter errors drawn per plant: gain +-{} %, offset +-{} codes on each channel",
+            sig(100.0 * c.gain_rel, 3),
+            sig(c.offset_code, 3)
+        )?;
+    }
     let started = std::time::Instant::now();
-    let mut draws = montecarlo_with(&sc, args.n, args.seed, !args.quiet)?;
+    let mut draws = montecarlo_opts(&sc, args.n, args.seed, !args.quiet, &options)?;
     writeln!(
         out,
         "{} draws in {} s",
@@ -359,10 +603,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     let mut checked = Vec::new();
     if args.substeps.is_none() {
         for k in worst_draws(&draws) {
-            let drawn = sc.clone().with_plant(TruePlant::Drawn {
-                seed: draw_seed(args.seed, k),
-                uncertainty,
-            });
+            let (drawn, _) = options.scenario(&sc, args.seed, k)?;
             let reference = accuracy::Reference::new(&drawn)?;
             let mut a = reference.accuracy(sc.integration.substeps)?;
             while !a.within(TOLERANCE_REL) && a.substeps < 10 * substeps.max(10) {
@@ -391,7 +632,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                 sig(TOLERANCE_REL, 1)
             )?;
             sc.integration.substeps = needed;
-            draws = montecarlo_with(&sc, args.n, args.seed, !args.quiet)?;
+            draws = montecarlo_opts(&sc, args.n, args.seed, !args.quiet, &options)?;
         } else {
             writeln!(
                 out,
@@ -420,6 +661,39 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         draws.len() - failing,
         draws.len()
     )?;
+    let sensor = draws
+        .iter()
+        .any(|d| d.sensor.is_some())
+        .then(|| sensor_summary(&draws, &t));
+    if let Some(s) = &sensor {
+        writeln!(
+            out,
+            "\non the true position, with converter errors: worst |steady error| {} % of the \
+             reference, of which the sensor's share (what the gain and offset errors alone \
+             give at the reference; no controller removes it) up to {} %; the controller's \
+             part (|error - sensor's share|) at most {} %, its overshoot past the end the \
+             share shifts to at most {} % of the step; {} draws miss the steady-error target; \
+             {} draws miss targets only because of the sensor's share, {} for another reason",
+            sig(s.worst_true_pct, 3),
+            sig(s.worst_sensor_pct, 3),
+            sig(s.worst_controller_pct, 3),
+            sig(s.worst_controller_overshoot_pct, 3),
+            s.steady_misses,
+            s.sensor_only,
+            s.other_misses
+        )?;
+    }
+    let classes = classify_all(&draws, &t);
+    writeln!(
+        out,
+        "\n{} pass, {} end in a named fault with the bridge coasting ({}), {} fail silently \
+         (a target missed, no fault latched), {} latch a fault without coasting",
+        classes.pass,
+        classes.named(),
+        classes.mix(),
+        classes.silent,
+        classes.fault_not_coasting
+    )?;
 
     report::create_dir(&dir)?;
     let mut files = Vec::new();
@@ -440,6 +714,8 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         worst,
         targets,
         failing,
+        sensor,
+        classes,
         files,
     })
 }

@@ -2,7 +2,9 @@
 //! written to `hil-sim/RESULTS.md` so that no figure is copied by hand: the paper's claims
 //! beside the measured values, the three laws compared, the family of actuators with the
 //! settings derived from each, the Monte Carlo of every member at its own rate and at
-//! 20 kHz, and the fault table of every member.
+//! 20 kHz, the fault table of every member, the Monte Carlo with converter errors drawn
+//! per plant (the sensor's share of the steady error apart), and the draws beyond the
+//! controller's tolerances sorted into pass, named fault and silent failure.
 //!
 //! `--check` runs the same and compares with the file, failing on the first line that
 //! differs: CI runs it, so a change that moves a figure must also regenerate the file.
@@ -35,6 +37,9 @@ pub struct Args {
     /// Seed of the draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Plants drawn per member and spread factor beyond the controller's tolerances.
+    #[arg(long, default_value_t = 200)]
+    pub n_beyond: usize,
     /// The file [default: RESULTS.md in the hil-sim crate].
     #[arg(long, value_name = "FILE")]
     pub file: Option<PathBuf>,
@@ -50,6 +55,7 @@ impl Default for Args {
             check: false,
             n: 1000,
             seed: 1,
+            n_beyond: 200,
             file: None,
             output: Output::default(),
         }
@@ -111,6 +117,7 @@ pub fn first_difference(a: &str, b: &str) -> Option<(usize, String, String)> {
 /// The text of the file, from the runs.
 fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     anyhow::ensure!(args.n > 0, "--n = 0: draw at least one plant");
+    anyhow::ensure!(args.n_beyond > 0, "--n-beyond = 0: draw at least one plant");
     let scratch = args.output.dir("results");
     let sub = |name: &str| Output {
         out: Some(scratch.join(name)),
@@ -217,6 +224,8 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                     seed: args.seed,
                     rate_hz: rate,
                     substeps: None,
+                    sensor_errors: false,
+                    spread: 1.0,
                     quiet: true,
                     output: sub(&format!("{}-{}hz", e.name, rate_hz)),
                 },
@@ -267,6 +276,8 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                 actuator: e.name.into(),
                 rate_hz: None,
                 supply_v: None,
+                random: None,
+                seed: 1,
                 output: sub(&format!("{}-faults", e.name)),
             },
             &mut Vec::new(),
@@ -288,7 +299,167 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         ft.push(std::iter::once(name).chain(cells));
     }
     writeln!(w, "{}", ft.to_text())?;
+
+    sensor_errors(args, w, out)?;
+    beyond(args, w, out)?;
     Ok(Outcome { text: md })
+}
+
+/// Spread factors beyond the controller's tolerances the family is drawn at.
+pub const BEYOND: [f64; 2] = [1.25, 1.5];
+
+fn mc_args(args: &Args, name: &str, sub: &str) -> montecarlo::Args {
+    montecarlo::Args {
+        scenario: name.into(),
+        n: args.n,
+        seed: args.seed,
+        rate_hz: None,
+        substeps: None,
+        sensor_errors: false,
+        spread: 1.0,
+        quiet: true,
+        output: Output {
+            out: Some(args.output.dir("results").join(sub)),
+        },
+    }
+}
+
+/// The section on converter errors.
+fn sensor_errors(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
+    let class = crate::hal::CalibrationClass::default();
+    writeln!(
+        w,
+        "## Converter errors (`hil-sim montecarlo <name> --n {n} --seed {seed} \
+         --sensor-errors`)\n\n\
+         The Monte Carlo above at each member's own rate, each plant also drawn a converter \
+         whose position, current and bus channels each carry a gain error uniform within \
+         +-{g} % and an offset uniform within +-{o} codes (the calibration class, \
+         `hil_sim::hal::CalibrationClass`), which the controller's calibration does not \
+         know. Every target is judged on the true position. The sensor's share is what the \
+         position channel's gain and offset alone give at the reference: the armature \
+         position at which the mean reading equals the reference, minus the reference \
+         (`hil_sim::hal::sensor_position_error_m`); no controller acting on that reading \
+         removes it. The controller's part is the steady error minus that share, and the \
+         overshoot past the end the share shifts the armature to. A draw \"misses only by the \
+         sensor's share\" when its only misses are the steady error and the overshoot and \
+         both controller parts meet their targets. The targets are not changed.\n",
+        n = args.n,
+        seed = args.seed,
+        g = sig(100.0 * class.gain_rel, 3),
+        o = sig(class.offset_code, 3),
+    )?;
+    let mut t = Table::new([
+        "member",
+        "ISR [kHz]",
+        "draws passing every target",
+        "missing only by the sensor's share",
+        "missing for another reason",
+        "|steady error| on the true position [%]",
+        "sensor's share [%]",
+        "controller's part [%]",
+        "overshoot on the true position [%]",
+        "controller's overshoot [%]",
+        "peak current [A]",
+        "draws with a fault",
+    ]);
+    for e in &actuator::FAMILY {
+        writeln!(out, "montecarlo {} with converter errors ...", e.name)?;
+        let o = montecarlo::run(
+            &montecarlo::Args {
+                sensor_errors: true,
+                ..mc_args(args, e.name, &format!("{}-sensor-errors", e.name))
+            },
+            &mut Vec::new(),
+        )?;
+        let s = o
+            .sensor
+            .ok_or_else(|| anyhow::anyhow!("{}: no converter errors drawn", e.name))?;
+        let cell = |row: &str| -> String {
+            o.targets
+                .row(row)
+                .map_or_else(|| "-".into(), |r| format!("{} ({})", r[2], r[1]))
+        };
+        let (_, act) = actuator::load(e.name)?;
+        let steady = crate::targets::STEADY_ERROR_PCT;
+        let overshoot = crate::targets::OVERSHOOT_PCT;
+        t.push([
+            e.name.to_owned(),
+            sig(f64::from(act.board.rate_hz) / 1e3, 3),
+            format!("{} of {}", o.draws.len() - o.failing, o.draws.len()),
+            s.sensor_only.to_string(),
+            s.other_misses.to_string(),
+            format!("{} ({})", sig(s.worst_true_pct, 4), sig(steady, 3)),
+            sig(s.worst_sensor_pct, 4),
+            format!("{} ({})", sig(s.worst_controller_pct, 4), sig(steady, 3)),
+            cell("overshoot [%]"),
+            format!(
+                "{} ({})",
+                sig(s.worst_controller_overshoot_pct, 4),
+                sig(overshoot, 3)
+            ),
+            cell("peak current [A]"),
+            o.targets
+                .row("no fault")
+                .map_or_else(|| "-".into(), |r| r[3].clone()),
+        ]);
+    }
+    writeln!(w, "{}", t.to_text())?;
+    Ok(())
+}
+
+/// The section on plants beyond the controller's tolerances.
+fn beyond(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
+    writeln!(
+        w,
+        "## Beyond the design set (`hil-sim montecarlo <name> --n {n} --seed {seed} \
+         --spread K`)\n\n\
+         {n} plants per member (seed {seed}, the member's own rate) drawn with the spreads of \
+         resistance, spring, mass and friction K times the controller's tolerances (pole \
+         surfaces still within the physical bounds). Every draw is sorted: pass (every \
+         target met), a named fault with the bridge coasting from then on, or a silent \
+         failure (a target missed with no fault latched). Required: no silent failure; a \
+         fault after which the bridge did not coast would be counted apart.\n",
+        n = args.n_beyond,
+        seed = args.seed,
+    )?;
+    let mut t = Table::new([
+        "member",
+        "K",
+        "draws",
+        "pass",
+        "named fault, coasting",
+        "faults by name",
+        "fault, not coasting",
+        "SILENT",
+        "silent misses by target",
+    ]);
+    for e in &actuator::FAMILY {
+        for k in BEYOND {
+            writeln!(out, "montecarlo {} at {} times the spreads ...", e.name, k)?;
+            let o = montecarlo::run(
+                &montecarlo::Args {
+                    n: args.n_beyond,
+                    spread: k,
+                    ..mc_args(args, e.name, &format!("{}-spread-{k}", e.name))
+                },
+                &mut Vec::new(),
+            )?;
+            let c = &o.classes;
+            t.push([
+                e.name.to_owned(),
+                sig(k, 3),
+                c.n.to_string(),
+                c.pass.to_string(),
+                c.named().to_string(),
+                c.mix(),
+                c.fault_not_coasting.to_string(),
+                c.silent.to_string(),
+                c.silent_mix(),
+            ]);
+        }
+    }
+    writeln!(w, "{}", t.to_text())?;
+    Ok(())
 }
 
 #[cfg(test)]

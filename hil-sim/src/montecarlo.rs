@@ -211,7 +211,7 @@ pub fn montecarlo_opts(
             let (sc, adc) = options.scenario(scenario, seed, index)?;
             let r = run(&sc).map(|r| {
                 let coasting_after_fault = r
-                    .trace
+                    .samples
                     .iter()
                     .skip_while(|s| s.fault.is_none())
                     .all(|s| s.mode == Mode::Coast);
@@ -232,7 +232,7 @@ pub fn montecarlo_opts(
                                     return 0.0;
                                 }
                                 let end = s.spec.to_m + share_m(s.spec.to_m);
-                                r.trace
+                                r.samples
                                     .iter()
                                     .filter(|p| p.t_s >= s.spec.start_s && p.t_s < s.spec.end_s)
                                     .map(|p| 100.0 * (p.x_m - end) * step.signum() / step.abs())

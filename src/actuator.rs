@@ -662,7 +662,7 @@ impl Actuator {
             rate_hz: b.rate_hz,
             plant,
             sense,
-            observer: observer::Gains {
+            observer: observer::Settings {
                 bandwidth_rad_s: tuning.observer_rad_s,
                 disturbance: true,
                 model: observer::Model::Robust,

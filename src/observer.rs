@@ -67,7 +67,7 @@ pub enum Model {
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
-pub struct Gains {
+pub struct Settings {
     /// Bandwidth `w`: all error poles at `exp(-w Ts)` \[rad/s\].
     pub bandwidth_rad_s: f32,
     /// Also estimate the acceleration disturbance `d`.
@@ -82,7 +82,7 @@ pub struct Gains {
     pub force_scaled_above_a: f32,
 }
 
-impl Gains {
+impl Settings {
     /// Builds the observer for `plant` at the sample period `ts_s`. With `delay_ticks = 1`
     /// the measurement of a tick is one period old and the estimate given to the law is the
     /// one-step prediction (the state now, not at the sample).
@@ -145,7 +145,7 @@ impl Gains {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Config {
-    gains: Gains,
+    gains: Settings,
     force_floor_n: f32,
     k1: f32,
     k2: f32,
@@ -190,7 +190,7 @@ pub struct Estimate {
 impl Config {
     /// The design parameters.
     #[must_use]
-    pub const fn gains(&self) -> &Gains {
+    pub const fn gains(&self) -> &Settings {
         &self.gains
     }
 
@@ -287,7 +287,7 @@ mod tests {
         // Second order: error matrix A (I - K C) has char. poly (z - p)^2.
         let plant = Plant::paper();
         let w = 2_000.0;
-        let o = Gains {
+        let o = Settings {
             bandwidth_rad_s: w,
             disturbance: false,
             model: Model::Nominal,
@@ -310,7 +310,7 @@ mod tests {
     #[test]
     fn extended_state_observer_learns_an_unknown_force() {
         let plant = Plant::paper();
-        let o = Gains {
+        let o = Settings {
             bandwidth_rad_s: 1_000.0,
             disturbance: true,
             model: Model::Nominal,
@@ -359,7 +359,7 @@ mod tests {
 
     #[test]
     fn first_sample_starts_at_rest() {
-        let o = Gains {
+        let o = Settings {
             bandwidth_rad_s: 1_000.0,
             disturbance: false,
             model: Model::Nominal,
@@ -384,7 +384,7 @@ mod tests {
             spring_n_per_m: 0.0,
             ..Plant::paper()
         };
-        let o = Gains {
+        let o = Settings {
             bandwidth_rad_s: 2_000.0,
             disturbance: false,
             model: Model::Nominal,
@@ -415,7 +415,7 @@ mod tests {
 
     #[test]
     fn bandwidth_beyond_nyquist_is_refused() {
-        let e = Gains {
+        let e = Settings {
             bandwidth_rad_s: 1e6,
             disturbance: false,
             model: Model::Nominal,
@@ -425,7 +425,7 @@ mod tests {
         .unwrap_err();
         assert_eq!(e.param, "observer.bandwidth_rad_s");
         // A period that no rate gives is refused as the rate settings files contain.
-        let e = Gains {
+        let e = Settings {
             bandwidth_rad_s: 100.0,
             disturbance: false,
             model: Model::Nominal,

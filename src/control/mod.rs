@@ -54,7 +54,7 @@ pub struct Settings {
     /// Converter calibration.
     pub sense: Calibration,
     /// Velocity observer.
-    pub observer: observer::Gains,
+    pub observer: observer::Settings,
     /// Control law and its gains.
     pub law: law::Settings,
     /// Trip limits.
@@ -89,7 +89,7 @@ impl Settings {
             rate_hz,
             plant,
             sense,
-            observer: observer::Gains {
+            observer: observer::Settings {
                 bandwidth_rad_s: 2_000.0,
                 disturbance: false,
                 model: observer::Model::Nominal,

@@ -80,21 +80,6 @@ struct Counts {
     faults: u64,
 }
 
-/// The faults only the detectors behind the law raise.
-fn from_detectors(f: Fault) -> bool {
-    matches!(
-        f,
-        Fault::OverCurrentI2t
-            | Fault::PositionStuck
-            | Fault::CurrentStuck
-            | Fault::CurrentOffset
-            | Fault::Tracking
-            | Fault::CoilOpen
-            | Fault::CoilShort
-            | Fault::ModelBounds
-    )
-}
-
 fn run(settings: &Settings, case: &Case) -> Result<Counts, TestCaseError> {
     let cfg = settings.build().unwrap();
     let limits = *cfg.limits();
@@ -166,7 +151,7 @@ fn run(settings: &Settings, case: &Case) -> Result<Counts, TestCaseError> {
             );
         }
         if before.is_none() {
-            if status.fault.is_none_or(from_detectors) {
+            if status.fault.is_none_or(Fault::from_detectors) {
                 counts.reached += 1;
             }
             if status.fault.is_some() {

@@ -3,78 +3,17 @@
 //! the simulator's for the same scenario), a fault (named), clear, set while armed
 //! (refused), save then restart (kept), a power cut during a save (old or new set).
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
+#[path = "common/rig.rs"]
+mod rig;
+
 use std::thread;
 use std::time::Duration;
 
 use ema::protocol::{Command, Message, Mode, Refusal, Reply, Source, Value};
 use ema::supervisor::Fault;
-use hil_sim::bench::board::{Injection, Options, VirtualBoard};
+use hil_sim::bench::board::{Injection, Options};
 use hil_sim::bench::cli::{self, CaptureArgs};
-use hil_sim::bench::link::Link;
-
-struct Rig {
-    link: Link<serialport::TTYPort>,
-    inject: mpsc::Sender<Injection>,
-    stop: Arc<AtomicBool>,
-    board: Option<thread::JoinHandle<(u32, u32)>>,
-    _slave: serialport::TTYPort,
-}
-
-impl Rig {
-    /// A virtual board on a pseudo-terminal, served as fast as it can; the host opens the
-    /// terminal by its path, as `bench --port` does.
-    fn new() -> Self {
-        let (master, slave) = serialport::TTYPort::pair().unwrap();
-        let path = serialport::SerialPort::name(&slave).unwrap();
-        let (tx, rx) = mpsc::channel::<Injection>();
-        let stop = Arc::new(AtomicBool::new(false));
-        let stop2 = stop.clone();
-        let board = thread::spawn(move || {
-            let mut master = master;
-            serialport::SerialPort::set_timeout(&mut master, Duration::from_millis(1)).unwrap();
-            let mut b = VirtualBoard::new(Options::default()).unwrap();
-            b.serve(&mut master, None, &stop2, |b| {
-                while let Ok(i) = rx.try_recv() {
-                    b.inject(i);
-                }
-            })
-            .unwrap();
-            (b.starts(), b.cut_saves())
-        });
-        let mut link = cli::open(path.as_ref(), Duration::from_secs(5)).unwrap();
-        link.wait_started(Duration::from_secs(5)).unwrap();
-        Self {
-            link,
-            inject: tx,
-            stop,
-            board: Some(board),
-            _slave: slave,
-        }
-    }
-
-    fn status(&mut self) -> ema::protocol::Status<'static> {
-        cli::status(&mut self.link).unwrap()
-    }
-
-    fn refusal(&mut self, command: Command<'_>) -> String {
-        let f = self.link.request(command).unwrap();
-        let mut scratch = Vec::new();
-        match f.message(&mut scratch).unwrap() {
-            Message::Reply {
-                reply: Reply::Refused(r),
-                ..
-            } => format!("{r:?}"),
-            other => panic!("not refused: {other:?}"),
-        }
-    }
-
-    fn finish(mut self) -> (u32, u32) {
-        self.stop.store(true, Ordering::Relaxed);
-        self.board.take().unwrap().join().unwrap()
-    }
-}
+use rig::Rig;
 
 fn wait_for(rig: &mut Rig, what: &str, f: impl Fn(&ema::protocol::Status<'_>) -> bool) {
     for _ in 0..500 {
@@ -88,7 +27,7 @@ fn wait_for(rig: &mut Rig, what: &str, f: impl Fn(&ema::protocol::Status<'_>) ->
 
 #[test]
 fn the_host_tool_drives_the_virtual_board_through_a_session() {
-    let mut rig = Rig::new();
+    let mut rig = Rig::new(Options::default());
 
     // Boots disarmed, on its built-in parameters, ready to arm.
     let s = rig.status();

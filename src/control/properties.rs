@@ -286,22 +286,6 @@ impl Input {
     }
 }
 
-/// The faults only the detectors behind the law raise: a tick that ends with none of
-/// the others passed sense, limits and the law's finiteness check.
-fn from_detectors(f: Fault) -> bool {
-    matches!(
-        f,
-        Fault::OverCurrentI2t
-            | Fault::PositionStuck
-            | Fault::CurrentStuck
-            | Fault::CurrentOffset
-            | Fault::Tracking
-            | Fault::CoilOpen
-            | Fault::CoilShort
-            | Fault::ModelBounds
-    )
-}
-
 /// Checks one tick's outcome against the product's promises.
 fn check(status: &Status, hw: &Hw, input: &Concrete, state: &State) -> Result<(), TestCaseError> {
     let duty = hw.duty.get();
@@ -398,7 +382,7 @@ fn run(
         };
         check(&status, &hw, &concrete, &state)?;
         counts.frames += 1;
-        if before.is_none() && status.fault.is_none_or(from_detectors) {
+        if before.is_none() && status.fault.is_none_or(Fault::from_detectors) {
             counts.reached += 1;
         }
         if hw.enable.get() {

@@ -79,6 +79,23 @@ pub enum Fault {
 pub const FAULT_COUNT: usize = 21;
 
 impl Fault {
+    /// Raised by the detectors that run behind the law ([`monitor`]): a tick that ends
+    /// with one of these (or with none) has passed sense, the limits and the law.
+    #[must_use]
+    pub const fn from_detectors(self) -> bool {
+        matches!(
+            self,
+            Fault::OverCurrentI2t
+                | Fault::PositionStuck
+                | Fault::CurrentStuck
+                | Fault::CurrentOffset
+                | Fault::Tracking
+                | Fault::CoilOpen
+                | Fault::CoilShort
+                | Fault::ModelBounds
+        )
+    }
+
     /// Every fault, in code order.
     pub const ALL: [Fault; FAULT_COUNT] = [
         Fault::PositionSensor,

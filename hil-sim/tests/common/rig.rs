@@ -1,0 +1,86 @@
+//! A virtual board on a pseudo-terminal, served as fast as it can, and the host tool's
+//! link to it opened by the terminal's path, as `bench --port` does: the rig of the tests
+//! that drive the board through the real serial path.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::thread;
+use std::time::Duration;
+
+use ema::protocol::{Command, Message, Reply};
+use hil_sim::bench::board::{Injection, Options, VirtualBoard};
+use hil_sim::bench::cli;
+use hil_sim::bench::link::Link;
+
+pub struct Rig {
+    pub link: Link<serialport::TTYPort>,
+    pub inject: mpsc::Sender<Injection>,
+    stop: Arc<AtomicBool>,
+    /// The board's thread; it ends with the board's starts and cut saves.
+    board: Option<thread::JoinHandle<(u32, u32)>>,
+    _slave: serialport::TTYPort,
+}
+
+impl Rig {
+    /// A board made with `options`, started and announced.
+    pub fn new(options: Options) -> Self {
+        let (master, slave) = serialport::TTYPort::pair().unwrap();
+        let path = serialport::SerialPort::name(&slave).unwrap();
+        let (tx, rx) = mpsc::channel::<Injection>();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stop2 = stop.clone();
+        let board = thread::spawn(move || {
+            let mut master = master;
+            serialport::SerialPort::set_timeout(&mut master, Duration::from_millis(1)).unwrap();
+            let mut b = VirtualBoard::new(options).unwrap();
+            b.serve(&mut master, None, &stop2, |b| {
+                while let Ok(i) = rx.try_recv() {
+                    b.inject(i);
+                }
+            })
+            .unwrap();
+            (b.starts(), b.cut_saves())
+        });
+        let mut link = cli::open(path.as_ref(), Duration::from_secs(5)).unwrap();
+        link.wait_started(Duration::from_secs(5)).unwrap();
+        Self {
+            link,
+            inject: tx,
+            stop,
+            board: Some(board),
+            _slave: slave,
+        }
+    }
+
+    pub fn status(&mut self) -> ema::protocol::Status<'static> {
+        cli::status(&mut self.link).unwrap()
+    }
+
+    /// The refusal `command` meets, as text; panics when it is not refused.
+    pub fn refusal(&mut self, command: Command<'_>) -> String {
+        let f = self.link.request(command).unwrap();
+        let mut scratch = Vec::new();
+        match f.message(&mut scratch).unwrap() {
+            Message::Reply {
+                reply: Reply::Refused(r),
+                ..
+            } => format!("{r:?}"),
+            other => panic!("not refused: {other:?}"),
+        }
+    }
+
+    /// Stops the board; its starts and cut saves.
+    pub fn finish(mut self) -> (u32, u32) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.board.take().unwrap().join().unwrap()
+    }
+}
+
+impl Drop for Rig {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(b) = self.board.take() {
+            let _ = b.join();
+        }
+    }
+}

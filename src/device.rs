@@ -479,64 +479,78 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         }
 
         let cfg = &self.cfg;
-        let armed = self.mode.armed();
         let setpoint = self.setpoint_m;
         let frame = inputs.frame;
-        let mut verdict = None;
-        let identification = &mut self.identification;
-        let last_drive_v = self.last_drive_v;
-        let mut identified = None;
-        let outcome = self.guard.run(
-            &mut self.guarded,
-            cfg,
-            &mut self.state,
-            bridge,
-            inputs.start,
-            |st, b| {
-                if armed {
-                    cfg.tick(st, b, &frame, setpoint)
-                } else if let Some(id) = identification.as_mut() {
-                    commission_tick(cfg, id, st, b, &frame, last_drive_v, &mut identified)
-                } else {
-                    let m = cfg.sense().convert(&frame);
-                    verdict = match m {
-                        Ok(m) => cfg.limits().check(&m),
-                        Err(f) => Some(f),
-                    };
-                    let mut status = TickStatus {
-                        fault: st.supervisor.latched(),
-                        measurement: m.unwrap_or_default(),
-                        ..TickStatus::default()
-                    };
-                    if b.coast().is_err() {
-                        status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
+        // Armed, the guard runs the tick alone: the commissioning's bookkeeping stays out
+        // of the closed loop's path (tests/qemu_device.rs counts what the application adds).
+        let outcome = if self.mode.armed() {
+            self.guard.run(
+                &mut self.guarded,
+                cfg,
+                &mut self.state,
+                bridge,
+                inputs.start,
+                |st, b| cfg.tick(st, b, &frame, setpoint),
+                end,
+            )
+        } else {
+            let mut verdict = None;
+            let mut identified = None;
+            let identification = &mut self.identification;
+            let last_drive_v = &mut self.last_drive_v;
+            let outcome = self.guard.run(
+                &mut self.guarded,
+                cfg,
+                &mut self.state,
+                bridge,
+                inputs.start,
+                |st, b| {
+                    if let Some(id) = identification.as_mut() {
+                        let (status, checked, ended) =
+                            commission_tick(cfg, id, st, b, &frame, last_drive_v);
+                        verdict = checked;
+                        identified = ended;
+                        status
+                    } else {
+                        let m = cfg.sense().convert(&frame);
+                        verdict = match m {
+                            Ok(m) => cfg.limits().check(&m),
+                            Err(f) => Some(f),
+                        };
+                        let mut status = TickStatus {
+                            fault: st.supervisor.latched(),
+                            measurement: m.unwrap_or_default(),
+                            ..TickStatus::default()
+                        };
+                        if b.coast().is_err() {
+                            status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
+                        }
+                        status
                     }
-                    status
+                },
+                end,
+            );
+            self.verdict = verdict;
+            if self.mode == Mode::Commissioning {
+                let ended = if self.state.supervisor.latched().is_some() {
+                    Some(Err(commission::Abort::Fault))
+                } else {
+                    identified
+                };
+                if let Some(r) = ended {
+                    self.identification = None;
+                    self.last_drive_v = 0.0;
+                    self.commissioned = match r {
+                        Ok(r) => Commissioned::Resistance(r),
+                        Err(a) => Commissioned::Aborted(a),
+                    };
+                    self.mode = Mode::Disarmed;
                 }
-            },
-            end,
-        );
+            }
+            outcome
+        };
         let status = outcome.status;
         self.measurement = status.measurement;
-        self.last_drive_v = status.drive.u_v;
-        if !armed {
-            self.verdict = verdict;
-        }
-        if self.mode == Mode::Commissioning {
-            let ended = if self.state.supervisor.latched().is_some() {
-                Some(Err(commission::Abort::Fault))
-            } else {
-                identified
-            };
-            if let Some(r) = ended {
-                self.identification = None;
-                self.commissioned = match r {
-                    Ok(r) => Commissioned::Resistance(r),
-                    Err(a) => Commissioned::Aborted(a),
-                };
-                self.mode = Mode::Disarmed;
-            }
-        }
         if self.state.supervisor.latched().is_some() {
             self.mode = Mode::Fault;
         } else if self.mode.armed() {
@@ -804,6 +818,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                     return done(Err(Refusal::NotReady { fault: f.code() }));
                 }
                 self.identification = Some(commission::Identification::new(plan));
+                self.last_drive_v = 0.0;
                 self.commissioned = Commissioned::Running;
                 self.mode = Mode::Commissioning;
                 done(Ok(()))
@@ -846,16 +861,20 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
 
 /// One commissioning tick: the codes converted and checked as in every tick (a fault
 /// latches and coasts), the identification's voltage applied, or the bridge coasted and
-/// the result handed out when it ends.
+/// the result handed out when it ends. Gives the tick's status, the check's verdict
+/// (what arming would meet) and the identification's end, if this tick ended it.
 fn commission_tick<P: SetDutyCycle, O: OutputPin>(
     cfg: &control::Config,
     id: &mut commission::Identification,
     st: &mut control::State,
     b: &mut HBridge<P, O>,
     frame: &Frame,
-    last_drive_v: f32,
-    identified: &mut Option<Result<commission::Resistance, commission::Abort>>,
-) -> TickStatus {
+    last_drive_v: &mut f32,
+) -> (
+    TickStatus,
+    Option<Fault>,
+    Option<Result<commission::Resistance, commission::Abort>>,
+) {
     let m = cfg.sense().convert(frame);
     let mut status = TickStatus {
         fault: st.supervisor.latched(),
@@ -866,8 +885,11 @@ fn commission_tick<P: SetDutyCycle, O: OutputPin>(
         Ok(m) => cfg.limits().check(&m).map_or(Ok(m), Err),
         Err(f) => Err(f),
     };
+    let verdict = checked.err();
+    let mut identified = None;
+    let applied_v = core::mem::replace(last_drive_v, 0.0);
     let step = match checked {
-        Ok(m) => id.step(&m, last_drive_v),
+        Ok(m) => id.step(&m, applied_v),
         Err(f) => {
             status.fault = Some(st.supervisor.trip(f));
             commission::Step::Done(Err(commission::Abort::Fault))
@@ -875,20 +897,23 @@ fn commission_tick<P: SetDutyCycle, O: OutputPin>(
     };
     match step {
         commission::Step::Drive(u_v) => match b.apply(u_v, status.measurement.vbus_v) {
-            Ok(drive) => status.drive = drive,
+            Ok(drive) => {
+                status.drive = drive;
+                *last_drive_v = drive.u_v;
+            }
             Err(_) => {
                 status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
-                *identified = Some(Err(commission::Abort::Fault));
+                identified = Some(Err(commission::Abort::Fault));
             }
         },
         commission::Step::Done(r) => {
             if b.coast().is_err() {
                 status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
             }
-            *identified = Some(r);
+            identified = Some(r);
         }
     }
-    status
+    (status, verdict, identified)
 }
 
 /// Reads the stored parameters (the main loop's view of the store).

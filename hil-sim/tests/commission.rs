@@ -98,10 +98,7 @@ fn a_coil_far_below_its_file_stops_above_the_rating_and_a_disarm_stops_it() {
 
     rig.coil(file);
     rig.link.done(Command::Commission).unwrap();
-    assert_eq!(
-        rig.status().mode,
-        Mode::Commissioning
-    );
+    assert_eq!(rig.status().mode, Mode::Commissioning);
     rig.link.done(Command::Disarm).unwrap();
     assert_eq!(
         rig.commissioned(),
@@ -111,7 +108,10 @@ fn a_coil_far_below_its_file_stops_above_the_rating_and_a_disarm_stops_it() {
 
     // Armed: refused, and nothing changes.
     rig.link.done(Command::Arm).unwrap();
-    assert_eq!(rig.refusal(Command::Commission), format!("{:?}", Refusal::Armed));
+    assert_eq!(
+        rig.refusal(Command::Commission),
+        format!("{:?}", Refusal::Armed)
+    );
     assert!(rig.status().mode.armed());
     // No restart on the way.
     assert_eq!(rig.finish(), (1, 0));

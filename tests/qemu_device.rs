@@ -76,6 +76,7 @@ fn main() -> ! {
             Some(c.recording_bare),
         ),
         ("carrying an order", c.with_order, None),
+        ("commissioning", c.commissioning, None),
     ] {
         match bare {
             Some(b) => outln!(
@@ -97,7 +98,7 @@ fn main() -> ! {
         }
     }
     ensure!(
-        c.disarmed.n >= 40 && c.armed.n >= 200 && c.recording.n > 3_000,
+        c.disarmed.n >= 40 && c.armed.n >= 200 && c.recording.n > 3_000 && c.commissioning.n >= 200,
         "too few ticks measured"
     );
     // What the application adds to the control tick, and what telemetry and the capture
@@ -130,6 +131,7 @@ fn main() -> ! {
         ("armed", c.armed.max),
         ("recording", c.recording.max),
         ("order", c.with_order.max),
+        ("commissioning", c.commissioning.max),
     ] {
         ensure!(
             n <= DEVICE_BUDGET,

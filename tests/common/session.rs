@@ -34,12 +34,14 @@ pub const BOARD: Board = Board {
 pub const PERIOD: u32 = 8_400;
 /// Samples of the session's capture buffer.
 pub const CAPTURE: usize = 32;
+/// Ticks of commissioning the session measures.
+pub const COMMISSIONING_TICKS: u32 = 300;
 
 /// FNV-1a (64 bit) of every byte the board sent, in order (the host computes it: see
 /// `tests/device_host.rs`).
-pub const FRAMES_HASH: u64 = 0xd62a_2d52_159d_be12;
+pub const FRAMES_HASH: u64 = 0xde17_8e1f_bb2f_0528;
 /// Bytes the board sent.
-pub const FRAMES_LEN: usize = 4982;
+pub const FRAMES_LEN: usize = 5317;
 
 /// Nothing stored.
 pub struct Empty;
@@ -110,6 +112,8 @@ pub struct Cost {
     /// Ticks that carried an order (its largest: an order such as a new configuration
     /// is applied by the tick that takes it).
     pub with_order: Spread,
+    /// Commissioning: the codes checked, the identification stepped, the bridge driven.
+    pub commissioning: Spread,
 }
 
 /// What the session saw.
@@ -269,6 +273,7 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
             break_active: false,
         };
         let armed = self.controller.mode().armed();
+        let commissioning = self.controller.mode() == Mode::Commissioning;
         let bare = if armed && !self.requesting {
             let mut state = *self.controller.state();
             let (cfg, frame, setpoint) = (
@@ -292,6 +297,7 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
         let c = &mut self.out.cost;
         match (self.requesting, armed, self.phase) {
             (true, ..) => c.with_order.add(n),
+            (false, false, _) if commissioning => c.commissioning.add(n),
             (false, false, _) => c.disarmed.add(n),
             (false, true, 1 | 2) => {
                 c.recording.add(n);
@@ -471,6 +477,25 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
                 capture: CaptureState::Done(n),
             } if usize::from(n) == CAPTURE => {}
             _ => return Err("the last status is not disarmed with the capture done"),
+        }
+        // Commissioning: a few hundred ticks of the identification's first step, then a
+        // disarm ends it.
+        seq += 1;
+        if self.request(seq, Command::Commission, clock)? != Answer::Done {
+            return Err("commissioning refused");
+        }
+        for _ in 0..COMMISSIONING_TICKS {
+            self.tick(clock)?;
+        }
+        if self.controller.mode() != Mode::Commissioning {
+            return Err("the commissioning ended early");
+        }
+        seq += 1;
+        if self.request(seq, Command::Disarm, clock)? != Answer::Done {
+            return Err("a disarm did not end the commissioning");
+        }
+        if self.controller.mode() != Mode::Disarmed {
+            return Err("not disarmed after the commissioning");
         }
         self.out.hash = self.hash.0;
         self.out.len = self.hash.1;

@@ -512,14 +512,11 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                         identified = ended;
                         status
                     } else {
-                        let m = cfg.sense().convert(&frame);
-                        verdict = match m {
-                            Ok(m) => cfg.limits().check(&m),
-                            Err(f) => Some(f),
-                        };
+                        let (m, refused) = sensed(cfg, &frame);
+                        verdict = refused;
                         let mut status = TickStatus {
                             fault: st.supervisor.latched(),
-                            measurement: m.unwrap_or_default(),
+                            measurement: m,
                             ..TickStatus::default()
                         };
                         if b.coast().is_err() {
@@ -859,6 +856,15 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
     }
 }
 
+/// The codes converted and checked as every tick checks them: the measurement (zero when
+/// the codes are implausible) and what sense or the limits refuse, if anything.
+fn sensed(cfg: &control::Config, frame: &Frame) -> (Measurement, Option<Fault>) {
+    match cfg.sense().convert(frame) {
+        Ok(m) => (m, cfg.limits().check(&m)),
+        Err(f) => (Measurement::default(), Some(f)),
+    }
+}
+
 /// One commissioning tick: the codes converted and checked as in every tick (a fault
 /// latches and coasts), the identification's voltage applied, or the bridge coasted and
 /// the result handed out when it ends. Gives the tick's status, the check's verdict
@@ -875,22 +881,17 @@ fn commission_tick<P: SetDutyCycle, O: OutputPin>(
     Option<Fault>,
     Option<Result<commission::Resistance, commission::Abort>>,
 ) {
-    let m = cfg.sense().convert(frame);
+    let (m, verdict) = sensed(cfg, frame);
     let mut status = TickStatus {
         fault: st.supervisor.latched(),
-        measurement: m.unwrap_or_default(),
+        measurement: m,
         ..TickStatus::default()
     };
-    let checked = match m {
-        Ok(m) => cfg.limits().check(&m).map_or(Ok(m), Err),
-        Err(f) => Err(f),
-    };
-    let verdict = checked.err();
     let mut identified = None;
     let applied_v = core::mem::replace(last_drive_v, 0.0);
-    let step = match checked {
-        Ok(m) => id.step(&m, applied_v),
-        Err(f) => {
+    let step = match verdict {
+        None => id.step(&m, applied_v),
+        Some(f) => {
             status.fault = Some(st.supervisor.trip(f));
             commission::Step::Done(Err(commission::Abort::Fault))
         }

@@ -19,6 +19,7 @@ use crate::metrics::Metrics;
 use crate::plant::Params;
 use crate::scenario::{Scenario, Sensors, TruePlant, Uncertainty};
 use crate::sim::run;
+use crate::targets::worse;
 use crate::Error;
 
 /// One Monte Carlo draw.
@@ -236,7 +237,7 @@ pub fn montecarlo_opts(
                                     .iter()
                                     .filter(|p| p.t_s >= s.spec.start_s && p.t_s < s.spec.end_s)
                                     .map(|p| 100.0 * (p.x_m - end) * step.signum() / step.abs())
-                                    .fold(0.0, f64::max)
+                                    .fold(0.0, worse)
                             })
                             .collect(),
                     }

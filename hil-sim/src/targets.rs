@@ -123,7 +123,7 @@ pub struct Worst {
 
 /// The larger of two values where a `NaN` wins (a metric that is not a number must never
 /// pass for a good one).
-fn worse(acc: f64, v: f64) -> f64 {
+pub(crate) fn worse(acc: f64, v: f64) -> f64 {
     if v.is_nan() || acc.is_nan() {
         f64::NAN
     } else {

@@ -37,6 +37,7 @@ use serde::{Deserialize, Serialize};
 use crate::plant::Params;
 use crate::scenario::{Scenario, SegmentSpec};
 use crate::sim::{fault_name, ImpactAt, Sample};
+use crate::targets::worse;
 use crate::Error;
 
 /// Metrics of one reference segment.
@@ -152,16 +153,16 @@ pub fn bounds_check(controller: &ema::model::Plant, plant: &Params) -> Result<Bo
         let l = plant.inductance_h(g);
         let lo = mu / f64::from(env.mu_lo(g_ctl));
         let hi = mu / f64::from(env.mu_hi(g_ctl));
-        if lo < c.mu_lo_ratio_min {
+        if lo < c.mu_lo_ratio_min || lo.is_nan() {
             c.mu_lo_ratio_min = lo;
             c.mu_lo_worst_x_m = x;
         }
-        if hi > c.mu_hi_ratio_max {
+        if hi > c.mu_hi_ratio_max || hi.is_nan() {
             c.mu_hi_ratio_max = hi;
             c.mu_hi_worst_x_m = x;
         }
-        c.l_lo_ratio_min = c.l_lo_ratio_min.min(l / f64::from(env.l_lo(g_ctl)));
-        c.l_hi_ratio_max = c.l_hi_ratio_max.max(l / f64::from(env.l_hi(g_ctl)));
+        c.l_lo_ratio_min = -worse(-c.l_lo_ratio_min, -l / f64::from(env.l_lo(g_ctl)));
+        c.l_hi_ratio_max = worse(c.l_hi_ratio_max, l / f64::from(env.l_hi(g_ctl)));
     }
     let mut problems = Vec::new();
     let (lo_ok, hi_ok) = (1.0 - BRACKET_TOLERANCE, 1.0 + BRACKET_TOLERANCE);
@@ -275,10 +276,10 @@ pub(crate) fn compute(
             t_s: s.t_s,
             fault: s.fault,
         }),
-        i_peak_a: trace.iter().map(|s| s.i_abs_max_a).fold(0.0, f64::max),
-        u_cmd_peak_v: trace.iter().map(|s| s.u_cmd_v.abs()).fold(0.0, f64::max),
+        i_peak_a: trace.iter().map(|s| s.i_abs_max_a).fold(0.0, worse),
+        u_cmd_peak_v: trace.iter().map(|s| s.u_cmd_v.abs()).fold(0.0, worse),
         energy_j: trace.iter().map(|s| s.energy_j).sum(),
-        landing_speed_mps: impacts.iter().map(|i| i.impact.speed_mps).reduce(f64::max),
+        landing_speed_mps: impacts.iter().map(|i| i.impact.speed_mps).reduce(worse),
         impacts: impacts.len(),
     }
 }
@@ -303,7 +304,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
     } else {
         seg.iter()
             .map(|s| 100.0 * (s.x_m - spec.to_m) * step.signum() / step.abs())
-            .fold(0.0, f64::max)
+            .fold(0.0, worse)
     };
 
     let w0 = trace
@@ -325,7 +326,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
     let (i_min, i_max) = win
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
-            (lo.min(s.i_a), hi.max(s.i_a))
+            (-worse(-lo, -s.i_a), worse(hi, s.i_a))
         });
     #[allow(clippy::cast_precision_loss)]
     let u_rms_v = if seg.is_empty() {
@@ -346,10 +347,10 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
             i_max - i_min
         },
         ripple_rms_a,
-        i_peak_a: seg.iter().map(|s| s.i_abs_max_a).fold(0.0, f64::max),
-        u_peak_v: seg.iter().map(|s| s.u_abs_max_v).fold(0.0, f64::max),
+        i_peak_a: seg.iter().map(|s| s.i_abs_max_a).fold(0.0, worse),
+        u_peak_v: seg.iter().map(|s| s.u_abs_max_v).fold(0.0, worse),
         u_rms_v,
-        u_cmd_peak_v: seg.iter().map(|s| s.u_cmd_v.abs()).fold(0.0, f64::max),
+        u_cmd_peak_v: seg.iter().map(|s| s.u_cmd_v.abs()).fold(0.0, worse),
         saturated_samples: seg.iter().filter(|s| s.u_cmd_v.abs() > s.vbus_v).count(),
         faulted_samples: seg.iter().filter(|s| s.fault.is_some()).count(),
         energy_j: seg.iter().map(|s| s.energy_j).sum(),
@@ -357,7 +358,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
             .iter()
             .filter(|i| i.t_s >= spec.start_s && i.t_s < spec.end_s)
             .map(|i| i.impact.speed_mps)
-            .reduce(f64::max),
+            .reduce(worse),
     }
 }
 
@@ -431,6 +432,36 @@ mod tests {
         assert!((e.error_um + 1e3 * (-5.0_f64).exp()).abs() < 1e-9);
         assert_eq!(s.landing_speed_mps, None);
         assert_eq!(m.first_fault, None);
+    }
+
+    /// One sample that is not a number must make every metric it enters not a number:
+    /// a fold that drops it would let a broken run pass for a good one.
+    #[test]
+    fn a_sample_that_is_not_a_number_is_not_dropped() {
+        let (sc, mut trace) = synthetic();
+        if let Some(s) = trace.get_mut(990) {
+            s.i_a = f64::NAN;
+            s.i_abs_max_a = f64::NAN;
+            s.u_cmd_v = f64::NAN;
+            s.u_abs_max_v = f64::NAN;
+        }
+        if let Some(s) = trace.get_mut(300) {
+            s.x_m = f64::NAN;
+        }
+        let bounds = bounds_check(&sc.controller.plant, &Params::paper()).unwrap();
+        let m = compute(&sc, bounds, &trace, &[]);
+        let s = m.first().unwrap();
+        for (name, v) in [
+            ("run i_peak_a", m.i_peak_a),
+            ("run u_cmd_peak_v", m.u_cmd_peak_v),
+            ("overshoot_pct", s.overshoot_pct),
+            ("ripple_pp_a", s.ripple_pp_a),
+            ("i_peak_a", s.i_peak_a),
+            ("u_peak_v", s.u_peak_v),
+            ("u_cmd_peak_v", s.u_cmd_peak_v),
+        ] {
+            assert!(v.is_nan(), "{name} = {v}: the NaN sample was dropped");
+        }
     }
 
     #[test]

@@ -294,8 +294,13 @@ pub const SETTLING_PER_MINIMUM_MOVE: f32 = 1.5;
 const POSITION_ZERO_SHARE: f32 = 0.05;
 /// Share of the converter range the position sensor's span covers (5 % to 95 %).
 const POSITION_SPAN_SHARE: f32 = 0.9;
-/// Share of the current channel's full scale the trip level may reach.
-const TRIP_SHARE_OF_FULL_SCALE: f32 = 0.95;
+/// The board's over-current comparator, per unit of the peak current (the software trip):
+/// 20 % above it, for the PWM ripple and the rise within one period that the sampled trip
+/// cannot see.
+pub const BREAK_PER_PEAK: f32 = 1.2;
+/// Largest share of the current channel's full scale the comparator may trip at: 2047
+/// codes of the 2048 either side of mid-scale, so that the converter sees what tripped it.
+const BREAK_SHARE_OF_FULL_SCALE: f32 = 2047.0 / 2048.0;
 /// The bus channel must read this much above the over-voltage trip: a supply at 140 % of
 /// its nominal must read as an over-voltage, not as a broken sensor on its rail.
 const VBUS_HEADROOM: f32 = 1.15;
@@ -440,7 +445,8 @@ impl Actuator {
         config::positive("board.supply_v", b.supply_v)?;
         config::positive("board.rate_hz", b.rate_hz)?;
         config::at_least("board.position_span_m", b.position_span_m, m.stroke_m)?;
-        let least_fs = c.peak_current_a / TRIP_SHARE_OF_FULL_SCALE;
+        // The board's comparator trips inside the channel's full scale.
+        let least_fs = BREAK_PER_PEAK * c.peak_current_a / BREAK_SHARE_OF_FULL_SCALE;
         config::at_least(
             "board.current_full_scale_a",
             b.current_full_scale_a,
@@ -629,6 +635,14 @@ impl Actuator {
             margin: DEFAULT_MARGIN,
             disturbance_follows_force: true,
         })
+    }
+
+    /// The level the board's over-current comparator trips at, either direction
+    /// ([`BREAK_PER_PEAK`] times the peak current) \[A\]: it switches the bridge off without
+    /// software, within the period the sampled trip cannot see into.
+    #[must_use]
+    pub const fn break_current_a(&self) -> f32 {
+        BREAK_PER_PEAK * self.coil.peak_current_a
     }
 
     /// The law's limit on the desired current: the rating less the ripple allowance \[A\].

@@ -247,6 +247,7 @@ pub fn scenario(name: &str, act: &Actuator) -> Result<Scenario, Error> {
         sensors: Sensors::Adc(Adc::typical()),
         bridge: Bridge {
             max_duty: pwm_full_scale(rate_hz),
+            break_current_a: Some(act.break_current_a()),
             ..Bridge::default()
         },
         integration: Integration::for_rate(rate_hz),

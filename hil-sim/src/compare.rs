@@ -8,8 +8,9 @@
 //! Each law runs with its own defaults: the paper-family laws with the paper's gains and
 //! no reference shaping (`Settings::paper`, told about the one-sample delay), the practical
 //! law with `Settings::practical`. So that the paper-family laws show what they do rather
-//! than stop at the first sample, their current channel covers +-120 A and their current
-//! trip is 100 A; the practical law keeps the product's 16.5 A channel and 13.2 A trip.
+//! than stop at the first sample, their current channel covers +-120 A, their current
+//! trip is 100 A and the board's over-current comparator is left out; the practical law
+//! keeps the product's 16.5 A channel, 13.2 A trip and 15.84 A comparator.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -73,6 +74,9 @@ pub fn scenario(law_name: &str, rate_hz: f64, supply_v: f64) -> Result<Scenario,
         s.limits.current_trip_a = 100.0;
         s
     };
+    if law_name != "practical" {
+        sc.bridge.break_current_a = None;
+    }
     sc.controller = match law_name {
         "paper" => paper_family(law::Settings::Paper(law::paper::Gains::paper())),
         "boundary_layer" => paper_family(law::Settings::BoundaryLayer(law::paper::Gains::paper())),

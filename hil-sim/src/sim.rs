@@ -14,6 +14,13 @@
 //! and if the stall outlasts the watchdog, the watchdog coasts the bridge first (the
 //! firmware then resets and starts with the overrun latched, which is what the run
 //! records).
+//!
+//! The board's over-current comparator on the timer's break input
+//! ([`crate::scenario::Bridge::break_current_a`]) is checked at every substep: once the
+//! coil current reaches its level the bridge coasts for the rest of the run, whatever the
+//! lines select, and the next tick starts with the break flag set (`hardware_trip`), as
+//! the firmware's does. Between two samples it is the only protection: the sampled trip
+//! sees the current once a period.
 
 use ema::bridge::{Drive, HBridge, Mode};
 use ema::guard::{self, End, Start};
@@ -224,7 +231,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
             let start = Start {
                 #[allow(clippy::cast_possible_truncation)]
                 now: now_ns as u32,
-                hardware_trip: false,
+                hardware_trip: stepper.broken(),
             };
             let (x_m, i_a) = sensing.read(&now);
             let outcome = guard.run(
@@ -408,6 +415,10 @@ pub struct Stepper {
     last: Input,
     /// The coil circuit is open (an injected fault): no current flows.
     coil_open: bool,
+    /// The board's over-current comparator's level \[A\] (`None`: no comparator).
+    break_a: Option<f64>,
+    /// The comparator has tripped: the bridge coasts, whatever the lines select.
+    broken: bool,
 }
 
 impl Stepper {
@@ -427,6 +438,9 @@ impl Stepper {
         supply.validate()?;
         crate::plant::positive("controller.rate_hz", rate_hz)?;
         crate::plant::non_negative("bridge.diode_drop_v", bridge.diode_drop_v)?;
+        if let Some(b) = bridge.break_current_a {
+            crate::plant::positive("bridge.break_current_a", f64::from(b))?;
+        }
         if substeps == 0 {
             return Err(Error::param(
                 "integration.substeps",
@@ -447,6 +461,8 @@ impl Stepper {
             impacts: Vec::new(),
             last,
             coil_open: false,
+            break_a: bridge.break_current_a.map(f64::from),
+            broken: false,
         })
     }
 
@@ -455,6 +471,26 @@ impl Stepper {
     pub fn open_coil(&mut self) {
         self.coil_open = true;
         self.state.y[2] = 0.0;
+    }
+
+    /// The board's over-current comparator has tripped: the bridge's outputs are off until
+    /// [`Stepper::release_break`] (the firmware's break input, read by the next tick).
+    #[must_use]
+    pub const fn broken(&self) -> bool {
+        self.broken
+    }
+
+    /// The comparator's output now: the current is at or above its level (the cause of a
+    /// trip is still there).
+    #[must_use]
+    pub fn break_input_active(&self) -> bool {
+        let i = self.plant.current_a(&self.state);
+        self.break_a.is_some_and(|b| i.abs() >= b)
+    }
+
+    /// Re-enables the outputs after a comparator trip (a re-arm).
+    pub fn release_break(&mut self) {
+        self.broken = false;
     }
 
     /// Changes the coil resistance (an injected short of turns) \[ohm\].
@@ -596,8 +632,10 @@ impl Stepper {
         let mut i = self.plant.current_a(&self.state);
         for _ in 0..n {
             let input = match phase {
-                Phase::Driven { sign, fraction } => self.supply.driven(sign, fraction),
-                Phase::Coast => self.supply.coast(i, self.diode_drop_v),
+                Phase::Driven { sign, fraction } if !self.broken => {
+                    self.supply.driven(sign, fraction)
+                }
+                Phase::Driven { .. } | Phase::Coast => self.supply.coast(i, self.diode_drop_v),
             };
             let u0 = input.coil_voltage_v(i).abs();
             let hit = self.plant.step(&mut self.state, &input, h);
@@ -609,12 +647,14 @@ impl Stepper {
             i = self.plant.current_a(&self.state);
             p.u_abs_max_v = p.u_abs_max_v.max(u0).max(input.coil_voltage_v(i).abs());
             p.i_abs_max_a = p.i_abs_max_a.max(i.abs());
+            // The comparator acts at the end of the substep it is crossed in.
+            self.broken |= self.break_a.is_some_and(|b| i.abs() >= b);
             if let Some(impact) = hit {
                 self.impacts.push(ImpactAt { t_s: *t, impact });
             }
             self.last = input;
         }
-        if let Phase::Coast = phase {
+        if matches!(phase, Phase::Coast) || self.broken {
             // The bus voltage at the next sample follows the state the coil ends in.
             self.last = self.supply.coast(i, self.diode_drop_v);
         }

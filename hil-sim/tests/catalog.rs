@@ -57,7 +57,14 @@ fn left_out_sections_take_their_defaults() {
     let product = Scenario::product(20_000.0, 24.0).unwrap();
     assert_eq!(sc.initial, product.initial); // at rest at the step's from_m
     assert_eq!(sc.plant, product.plant); // the controller's nominal plant
-    assert_eq!(sc.bridge, product.bridge);
+                                         // A file without the comparator's level simulates a board without one.
+    assert_eq!(
+        sc.bridge,
+        hil_sim::scenario::Bridge {
+            break_current_a: None,
+            ..product.bridge
+        }
+    );
     assert_eq!(sc.integration.substeps, 10); // none longer than 5 us at 20 kHz
 }
 
@@ -188,4 +195,23 @@ fn the_binary_exits_non_zero_with_the_message() {
     assert!(stderr.contains("alpha2 = 10"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(!p.parent().unwrap().join("out").exists());
+}
+
+/// The comparator backs the sampled trip up: a level at or below the trip (13.2 A on the
+/// product) is refused by name, with the trip it must exceed.
+#[test]
+fn a_comparator_below_the_current_trip_is_refused() {
+    let p = bad_file(
+        "break",
+        "product",
+        "break_current_a = 15.84",
+        "break_current_a = 12.0",
+    );
+    let e = load_err(&p);
+    assert_eq!(e.field(), Some("bridge.break_current_a"));
+    let text = e.to_string();
+    assert!(
+        text.contains("bridge.break_current_a = 12: must be above the current trip, 13.2 A"),
+        "{text}"
+    );
 }

@@ -358,3 +358,39 @@ fn without_the_injection_nothing_is_raised() {
         }
     }
 }
+
+/// The board's over-current comparator (the break input) switches the bridge off within
+/// the substep the current crosses its level, without the tick; the next tick latches
+/// `hardware_trip` and the bridge coasts from then on. The paper's law on the product's
+/// actuator (`hil-sim compare`'s cell, its current trip brought down to 14 A) drives the
+/// coil past the sampled trip between two samples; the comparator holds the peak to its
+/// level plus one substep's rise, and without it the same run goes further. At its real
+/// level, 1.2 x the peak current, the product's healthy run never reaches it.
+#[test]
+fn the_board_s_comparator_switches_the_bridge_off_at_its_level() {
+    let level = ema::actuator::Actuator::PRODUCT.break_current_a();
+    let product = Scenario::product(20e3, 24.0).unwrap().with_duration_s(0.1);
+    assert_eq!(product.bridge.break_current_a, Some(level));
+    let healthy = run(&product).unwrap();
+    assert!(healthy.samples.iter().all(|s| s.fault.is_none()));
+
+    let mut without = hil_sim::compare::scenario("paper", 20e3, 24.0)
+        .unwrap()
+        .with_duration_s(0.1);
+    without.controller.limits.current_trip_a = 14.0;
+    let w = run(&without).unwrap();
+    let mut with = without.clone();
+    with.bridge.break_current_a = Some(level);
+    let r = run(&with).unwrap();
+    let k = r.samples.iter().position(|s| s.fault.is_some()).unwrap();
+    assert_eq!(r.samples[k].fault, Some(Fault::HardwareTrip));
+    let peak = r.metrics.i_peak_a;
+    assert!(
+        peak >= f64::from(level) && peak <= f64::from(level) + 0.4,
+        "peak {peak} A against the comparator's {level} A"
+    );
+    assert!(r.samples[k..]
+        .iter()
+        .all(|s| s.mode == ema::bridge::Mode::Coast));
+    assert!(w.metrics.i_peak_a > peak + 1.0, "{} A", w.metrics.i_peak_a);
+}

@@ -379,13 +379,17 @@ impl VirtualBoard {
             analog: self.plant.analog_code,
             start: Start {
                 now,
-                hardware_trip: false,
+                hardware_trip: self.plant.stepper.broken(),
             },
-            break_active: false,
+            break_active: self.plant.stepper.break_input_active(),
         };
         let ticked = run
             .controller
             .tick(&mut self.plant.bridge, &inputs, &mut isr, End::default);
+        if ticked.restore_outputs {
+            // The firmware sets the timer's main output again.
+            self.plant.stepper.release_break();
+        }
         self.plant
             .stepper
             .advance(self.plant.lines.switches(), self.plant.mode);

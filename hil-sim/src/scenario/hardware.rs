@@ -83,6 +83,11 @@ pub struct Bridge {
     pub max_duty: u16,
     /// Forward drop of one freewheeling diode \[V\].
     pub diode_drop_v: f64,
+    /// The board's over-current comparator on the break input: at this `|i|` the bridge
+    /// switches off within the substep, without the tick, and stays off; the next tick
+    /// latches `hardware_trip` \[A\]. `None`: no comparator (the paper's setting). An
+    /// actuator's scenario has [`ema::actuator::Actuator::break_current_a`].
+    pub break_current_a: Option<f32>,
 }
 
 impl Default for Bridge {
@@ -93,6 +98,7 @@ impl Default for Bridge {
             mode: BridgeMode::Averaged,
             max_duty: crate::actuator::pwm_full_scale(20e3),
             diode_drop_v: 0.7,
+            break_current_a: None,
         }
     }
 }

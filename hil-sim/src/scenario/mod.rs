@@ -425,6 +425,17 @@ impl Scenario {
             return Err(Error::param("bridge.max_duty", 0.0, "must be positive"));
         }
         non_negative("bridge.diode_drop_v", self.bridge.diode_drop_v)?;
+        if let Some(b) = self.bridge.break_current_a {
+            // Above the software trip: the comparator backs the sampled trip up.
+            let trip = self.controller.limits.current_trip_a;
+            if b.is_nan() || b <= trip {
+                return Err(Error::param(
+                    "bridge.break_current_a",
+                    f64::from(b),
+                    format!("must be above the current trip, {trip} A"),
+                ));
+            }
+        }
         if !(1..=1_000_000).contains(&self.integration.substeps) {
             return Err(Error::param(
                 "integration.substeps",

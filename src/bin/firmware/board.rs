@@ -230,10 +230,11 @@ pub const BREAK_PORT: char = 'B';
 /// Pin number of the break input.
 pub const BREAK_PIN: u8 = 12;
 /// Trip level the board's comparator on the current shunt must be set to, either direction
-/// \[A\]: 20 % above the software trip (the actuator's peak current, 13.2 A on the
-/// product's) for the PWM ripple between samples, inside the current channel's full scale
-/// (checked below). With the product's actuator, 15.84 A of its +-16.5 A.
-pub const BREAK_CURRENT_A: f32 = 1.2 * ACTUATOR.coil.peak_current_a;
+/// \[A\]: [`ema::actuator::Actuator::break_current_a`], 20 % above the software trip (the
+/// actuator's peak current, 13.2 A on the product's), inside the current channel's full
+/// scale (the actuator file's validation; checked again below). With the product's
+/// actuator, 15.84 A of its +-16.5 A.
+pub const BREAK_CURRENT_A: f32 = ACTUATOR.break_current_a();
 
 /// Longest time from a tick that stops to a coasting bridge \[ns\].
 pub const STALL_TO_COAST_MAX_NS: u32 = 500_000;
@@ -304,7 +305,7 @@ const _: () = {
     // The comparator trips inside the current channel's full scale (2047 codes either side
     // of mid-scale), so the converter sees what tripped it.
     assert!(
-        BREAK_CURRENT_A < (2047.0 / 2048.0) * ACTUATOR.board.current_full_scale_a,
+        BREAK_CURRENT_A <= (2047.0 / 2048.0) * ACTUATOR.board.current_full_scale_a,
         "the break comparator (1.2 x coil.peak_current_a) must trip inside \
          board.current_full_scale_a"
     );

@@ -74,52 +74,61 @@ pub fn table(cases: &[Case]) -> Table {
     t
 }
 
+/// Column names of the random-injection table.
+pub const RANDOM_HEADER: [&str; 11] = [
+    "fault injected",
+    "expected",
+    "n",
+    "pass",
+    "named within deadline [%]",
+    "detection median / p99 / max [us]",
+    "misnamed",
+    "not named",
+    "latched before",
+    "not coasting",
+    "peak current [A] (trip)",
+];
+
+/// One case's row of the random-injection table.
+#[must_use]
+pub fn random_row(s: &Spread) -> [String; 11] {
+    let us = |v: Option<f64>| v.map_or_else(|| "-".into(), |s| sig(s * 1e6, 3));
+    #[allow(clippy::cast_precision_loss)]
+    let share = 100.0 * s.within_deadline as f64 / s.n.max(1) as f64;
+    [
+        s.name.clone(),
+        s.expected.clone(),
+        s.n.to_string(),
+        s.pass.to_string(),
+        sig(share, 4),
+        format!(
+            "{} / {} / {}",
+            us(s.quantile_s(0.5)),
+            us(s.quantile_s(0.99)),
+            us(s.quantile_s(1.0))
+        ),
+        if s.misnamed.is_empty() {
+            "0".into()
+        } else {
+            s.misnamed
+                .iter()
+                .map(|(k, n)| format!("{k} {n}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        },
+        s.unnamed.to_string(),
+        s.before.to_string(),
+        s.not_coasting.to_string(),
+        format!("{} ({})", sig(s.peak_current_a, 4), sig(s.trip_a, 4)),
+    ]
+}
+
 /// The random-injection table.
 #[must_use]
 pub fn random_table(spreads: &[Spread]) -> Table {
-    let mut t = Table::new([
-        "fault injected",
-        "expected",
-        "n",
-        "pass",
-        "named within deadline [%]",
-        "detection median / p99 / max [us]",
-        "misnamed",
-        "not named",
-        "latched before",
-        "not coasting",
-        "peak current [A] (trip)",
-    ]);
-    let us = |v: Option<f64>| v.map_or_else(|| "-".into(), |s| sig(s * 1e6, 3));
+    let mut t = Table::new(RANDOM_HEADER);
     for s in spreads {
-        #[allow(clippy::cast_precision_loss)]
-        let share = 100.0 * s.within_deadline as f64 / s.n.max(1) as f64;
-        t.push([
-            s.name.clone(),
-            s.expected.clone(),
-            s.n.to_string(),
-            s.pass.to_string(),
-            sig(share, 4),
-            format!(
-                "{} / {} / {}",
-                us(s.quantile_s(0.5)),
-                us(s.quantile_s(0.99)),
-                us(s.quantile_s(1.0))
-            ),
-            if s.misnamed.is_empty() {
-                "0".into()
-            } else {
-                s.misnamed
-                    .iter()
-                    .map(|(k, n)| format!("{k} {n}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            },
-            s.unnamed.to_string(),
-            s.before.to_string(),
-            s.not_coasting.to_string(),
-            format!("{} ({})", sig(s.peak_current_a, 4), sig(s.trip_a, 4)),
-        ]);
+        t.push(random_row(s));
     }
     t
 }

@@ -278,8 +278,9 @@ pub struct Ticked {
     pub status: TickStatus,
     /// It ran on time: feed the watchdog.
     pub feed: bool,
-    /// A `hardware_trip` was cleared: re-enable the bridge's outputs (the firmware sets
-    /// the timer's main output again).
+    /// A `hardware_trip` was cleared: re-enable the bridge's outputs (the firmware clears
+    /// the timer's break flag, which this tick already read and consumed, and sets its
+    /// main output again).
     pub restore_outputs: bool,
 }
 
@@ -494,6 +495,13 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 end,
             )
         } else {
+            // The break flag was read before this tick's order: a clear that has just
+            // accepted the hardware trip (its cause gone) consumes it, or the same tick
+            // would latch it again. Only a disarmed board clears.
+            let start = Start {
+                hardware_trip: inputs.start.hardware_trip && !restore_outputs,
+                ..inputs.start
+            };
             let mut verdict = None;
             let mut identified = None;
             let identification = &mut self.identification;
@@ -503,7 +511,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 cfg,
                 &mut self.state,
                 bridge,
-                inputs.start,
+                start,
                 |st, b| {
                     if let Some(id) = identification.as_mut() {
                         let (status, checked, ended) =

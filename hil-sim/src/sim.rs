@@ -488,6 +488,11 @@ impl Stepper {
         self.break_a.is_some_and(|b| i.abs() >= b)
     }
 
+    /// Switches the outputs off as the break input does (the driver's fault output).
+    pub fn trip_break(&mut self) {
+        self.broken = true;
+    }
+
     /// Re-enables the outputs after a comparator trip (a re-arm).
     pub fn release_break(&mut self) {
         self.broken = false;

@@ -217,3 +217,49 @@ fn the_host_tool_drives_the_virtual_board_through_a_session() {
     assert_eq!(starts, 1 + 1 + 1 + 4);
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// The bridge driver's fault output pulls the timer's break input: the outputs go off
+/// without the tick, the next tick latches `hardware_trip`, and the armature falls back
+/// to its open stop. Clearing is refused while the input is still active; once it is
+/// gone, a clear re-enables the outputs and the board arms and moves again.
+#[test]
+fn a_driver_fault_on_the_break_input_holds_the_bridge_off_until_it_is_gone_and_cleared() {
+    let mut rig = Rig::new(Options::default());
+    rig.link.done(Command::Arm).unwrap();
+    rig.link
+        .done(Command::Move {
+            position_m: 3e-3,
+            time_s: None,
+        })
+        .unwrap();
+    wait_for(&mut rig, "at 3 mm", |s| (s.x_m - 3e-3).abs() < 20e-6);
+
+    rig.inject.send(Injection::DriverFault(true)).unwrap();
+    wait_for(&mut rig, "a fault", |s| s.mode == Mode::Fault);
+    assert_eq!(rig.status().fault, Some(Fault::HardwareTrip.code()));
+    wait_for(&mut rig, "back at the open stop", |s| s.x_m < 0.1e-3);
+    let r = rig.refusal(Command::Clear);
+    assert_eq!(
+        r,
+        format!(
+            "{:?}",
+            Refusal::CauseActive {
+                fault: Fault::HardwareTrip.code()
+            }
+        )
+    );
+
+    rig.inject.send(Injection::DriverFault(false)).unwrap();
+    rig.link.done(Command::Clear).unwrap();
+    assert_eq!(rig.status().mode, Mode::Disarmed);
+    rig.link.done(Command::Arm).unwrap();
+    rig.link
+        .done(Command::Move {
+            position_m: 2e-3,
+            time_s: None,
+        })
+        .unwrap();
+    wait_for(&mut rig, "at 2 mm", |s| (s.x_m - 2e-3).abs() < 20e-6);
+    assert_eq!(rig.status().fault, None);
+    rig.link.done(Command::Disarm).unwrap();
+}

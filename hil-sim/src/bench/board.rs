@@ -80,6 +80,9 @@ pub enum Injection {
     CutSave(u64),
     /// The coil's resistance \[ohm\] (a winding off its datasheet, or warm).
     Resistance(f64),
+    /// The bridge driver's fault output (over-temperature, under-voltage), wired to the
+    /// timer's break input with the current comparator: active or gone.
+    DriverFault(bool),
 }
 
 /// The plant side: what the firmware's timer, converter and bridge see.
@@ -91,6 +94,7 @@ struct Plant {
     mode: BridgeMode,
     position_open: bool,
     analog_code: u16,
+    driver_fault: bool,
 }
 
 /// The application side, rebuilt at every start.
@@ -272,6 +276,7 @@ impl VirtualBoard {
             }
             Injection::CutSave(step) => self.save_cut = Some(step),
             Injection::Resistance(r) => self.plant.stepper.set_resistance_ohm(r),
+            Injection::DriverFault(active) => self.plant.driver_fault = active,
         }
     }
 
@@ -366,6 +371,10 @@ impl VirtualBoard {
         };
         self.rx.drain(..taken);
 
+        if self.plant.driver_fault {
+            // The break input is held low: the outputs stay off, whatever software does.
+            self.plant.stepper.trip_break();
+        }
         let truth = self.plant.stepper.sample();
         let x = if self.plant.position_open {
             -1.0
@@ -381,7 +390,7 @@ impl VirtualBoard {
                 now,
                 hardware_trip: self.plant.stepper.broken(),
             },
-            break_active: self.plant.stepper.break_input_active(),
+            break_active: self.plant.driver_fault || self.plant.stepper.break_input_active(),
         };
         let ticked = run
             .controller
@@ -510,6 +519,7 @@ impl Plant {
             mode: sc.bridge.mode,
             position_open: false,
             analog_code: 0,
+            driver_fault: false,
         })
     }
 }

@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 use crate::plant::Params;
 use crate::scenario::{Scenario, SegmentSpec};
 use crate::sim::{fault_name, ImpactAt, Sample};
-use crate::targets::worse;
+use crate::targets::{worse, worse_low};
 use crate::Error;
 
 /// Metrics of one reference segment.
@@ -161,7 +161,7 @@ pub fn bounds_check(controller: &ema::model::Plant, plant: &Params) -> Result<Bo
             c.mu_hi_ratio_max = hi;
             c.mu_hi_worst_x_m = x;
         }
-        c.l_lo_ratio_min = -worse(-c.l_lo_ratio_min, -l / f64::from(env.l_lo(g_ctl)));
+        c.l_lo_ratio_min = worse_low(c.l_lo_ratio_min, l / f64::from(env.l_lo(g_ctl)));
         c.l_hi_ratio_max = worse(c.l_hi_ratio_max, l / f64::from(env.l_hi(g_ctl)));
     }
     let mut problems = Vec::new();
@@ -326,7 +326,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
     let (i_min, i_max) = win
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
-            (-worse(-lo, -s.i_a), worse(hi, s.i_a))
+            (worse_low(lo, s.i_a), worse(hi, s.i_a))
         });
     #[allow(clippy::cast_precision_loss)]
     let u_rms_v = if seg.is_empty() {

@@ -131,6 +131,12 @@ pub(crate) fn worse(acc: f64, v: f64) -> f64 {
     }
 }
 
+/// The smaller of two values where a `NaN` wins: [`worse`] for a metric whose low side is
+/// the bad one.
+pub(crate) fn worse_low(acc: f64, v: f64) -> f64 {
+    -worse(-acc, -v)
+}
+
 impl Worst {
     /// Adds one run, judged against `t`.
     pub fn add(&mut self, m: &Metrics, t: &Targets) {

@@ -123,10 +123,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     anyhow::ensure!(args.n > 0, "--n = 0: draw at least one plant");
     anyhow::ensure!(args.n_beyond > 0, "--n-beyond = 0: draw at least one plant");
     anyhow::ensure!(args.n_random > 0, "--n-random = 0: inject at least once");
-    let scratch = args.output.dir("results");
-    let sub = |name: &str| Output {
-        out: Some(scratch.join(name)),
-    };
+    let sub = |name: &str| scratch(args, name);
     let mut md = String::new();
     let w = &mut md;
     writeln!(
@@ -304,7 +301,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         ft.push(std::iter::once(name).chain(cells));
     }
     writeln!(w, "{}", ft.to_text())?;
-    random_faults(args, w, out, &sub)?;
+    random_faults(args, w, out)?;
 
     sensor_errors(args, w, out)?;
     beyond(args, w, out)?;
@@ -324,9 +321,14 @@ fn mc_args(args: &Args, name: &str, sub: &str) -> montecarlo::Args {
         sensor_errors: false,
         spread: 1.0,
         quiet: true,
-        output: Output {
-            out: Some(args.output.dir("results").join(sub)),
-        },
+        output: scratch(args, sub),
+    }
+}
+
+/// The folder `sub` of the runs' scratch folder (`--out`, default `out/results`).
+fn scratch(args: &Args, sub: &str) -> Output {
+    Output {
+        out: Some(args.output.dir("results").join(sub)),
     }
 }
 
@@ -414,12 +416,7 @@ fn sensor_errors(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Re
 }
 
 /// The section on faults injected at random instants on drawn plants.
-fn random_faults(
-    args: &Args,
-    w: &mut String,
-    out: &mut dyn Write,
-    sub: &dyn Fn(&str) -> Output,
-) -> anyhow::Result<()> {
+fn random_faults(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
     writeln!(
         w,
         "## Faults at random instants (`hil-sim faults <name> --random {n} --seed {seed}`)\n\n\
@@ -445,7 +442,7 @@ fn random_faults(
                 supply_v: None,
                 random: Some(args.n_random),
                 seed: args.seed,
-                output: sub(&format!("{}-faults-random", e.name)),
+                output: scratch(args, &format!("{}-faults-random", e.name)),
             },
             &mut Vec::new(),
         )?;

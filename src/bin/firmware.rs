@@ -64,6 +64,9 @@ mod app;
 #[cfg(target_os = "none")]
 #[path = "firmware/hw.rs"]
 mod hw;
+#[cfg(target_os = "none")]
+#[path = "firmware/link.rs"]
+mod link;
 
 /// The firmware only runs on the STM32F405; on the host this binary explains itself.
 #[cfg(not(target_os = "none"))]

@@ -1,24 +1,33 @@
-//! Start-up, the control interrupt, the window watchdog's early wake-up, the status line,
-//! and the panic and fault handlers.
+//! Start-up, the control interrupt, the main loop (the bench link and the status line),
+//! the window watchdog's early wake-up, and the panic and fault handlers.
 
 use core::cell::Cell;
 use core::mem::MaybeUninit;
 use core::ptr::addr_of_mut;
-use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::interrupt::{self as irq, Mutex};
-use cortex_m::peripheral::NVIC;
+use cortex_m::peripheral::{NVIC, SCB};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
-use ema::control::{Config, State};
+use ema::device::{
+    Action, Controller, Dispatcher, Inputs, Install, IsrEnds, MainEnds, Queues,
+    ANSWER_SLOTS, CAPTURE_CAPACITY, ORDER_SLOTS, SAMPLE_SLOTS,
+};
 use ema::guard::{self, End, Start};
+use ema::params::{Board, Params};
+use ema::protocol::{Sample, Source};
+use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
+use ema::store::{self, Store};
 use ema::supervisor::Fault;
+use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
+use stm32f4xx_hal::gpio::{Alternate, Pin};
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::board;
 use crate::hw::{self, Bridge, Watchdogs};
+use crate::link::{self, Link};
 use crate::regs;
 use crate::reset::{self, Cause, Record};
 use crate::stats::{self, Cycles, Published, Snapshot};
@@ -34,21 +43,31 @@ const _: () = assert!(
     guard::Config::for_period(board::CONTROL_PERIOD_CYCLES).max_gap() == board::OVERRUN_GAP_CYCLES
 );
 
+/// The capture buffer the controller fills in the interrupt.
+type Capture = &'static mut [Sample; CAPTURE_CAPACITY];
+
 /// Everything the control interrupt owns.
 struct Control {
-    cfg: Config,
-    state: State,
+    controller: Controller<Capture>,
     bridge: Bridge,
     watchdogs: Watchdogs,
-    guard: guard::Config,
-    guarded: guard::State,
+    /// Taken out for the tick (see `ADC`), always put back.
+    ends: Option<IsrEnds<'static>>,
     cycles: Cycles,
+}
+
+/// Everything the main loop owns: the dispatcher, its ends of the queues, the link and
+/// the store's read-only view.
+struct MainLoop {
+    dispatcher: Dispatcher,
+    ends: MainEnds<'static>,
+    link: Link,
+    /// Read-only from here on (see [`ChipFlash`]).
+    store: Store<ChipFlash>,
 }
 
 /// Start-up hands the controller to the interrupt through this cell, once.
 static HANDOFF: Mutex<Cell<Option<Control>>> = Mutex::new(Cell::new(None));
-/// Position set point \[m\], as `f32` bits (a future command interface writes it).
-static SETPOINT_M: AtomicU32 = AtomicU32::new(board::SETPOINT_M.to_bits());
 /// Status for the main loop.
 static STATUS: Published = Published::new();
 
@@ -73,6 +92,59 @@ fn record(cause: Cause, detail: u8) {
             record_words().write_volatile(Record { cause, detail }.encode());
         }
     }
+}
+
+/// A parameter set to save at the next start, before the watchdogs run (a save erases a
+/// 128 KiB sector: seconds, far beyond the independent watchdog's 2 ms): a marker, the
+/// record's length and the record as the store encodes it (its own CRC covers it), in RAM
+/// that start-up leaves as it is.
+#[repr(C)]
+struct PendingSave {
+    marker: u32,
+    len: u32,
+    record: [u8; store::MAX_RECORD],
+}
+
+/// "SAVE": a pending save follows.
+const SAVE_MARKER: u32 = 0x5341_5645;
+
+#[link_section = ".uninit.ema_pending_save"]
+static mut PENDING_SAVE: MaybeUninit<PendingSave> = MaybeUninit::uninit();
+
+/// Leaves `params` for the next start to save; false if the set does not encode.
+fn leave_save(params: &Params) -> bool {
+    let mut record = [0u8; store::MAX_RECORD];
+    let Ok(len) = store::encode(params, &mut record) else {
+        return false;
+    };
+    // SAFETY: a valid, aligned static; single core; only the main loop (here, just before
+    // a reset) and start-up (before any interrupt) touch it.
+    unsafe {
+        addr_of_mut!(PENDING_SAVE).cast::<PendingSave>().write_volatile(PendingSave {
+            marker: SAVE_MARKER,
+            len: len as u32,
+            record,
+        });
+    }
+    true
+}
+
+/// The set left to save, if any (its record decodes: marker and CRC); clears it first, so
+/// that a save cut short by a reset is not tried again.
+fn take_save() -> Option<Params> {
+    // SAFETY: as in `leave_save`; after a power-on the RAM holds arbitrary bits, which the
+    // marker and the record's CRC reject.
+    let pending = unsafe {
+        let p = addr_of_mut!(PENDING_SAVE).cast::<PendingSave>();
+        let pending = p.read_volatile();
+        p.cast::<u32>().write_volatile(0);
+        pending
+    };
+    if pending.marker != SAVE_MARKER {
+        return None;
+    }
+    let record = pending.record.get(..pending.len as usize)?;
+    store::decode(record).ok()
 }
 
 /// The recorded cause, if any; clears it.
@@ -105,6 +177,8 @@ enum StartError {
     },
     /// The settings do not build.
     Settings(ema::config::Error),
+    /// The parameter store's range is not whole sectors.
+    Store,
 }
 
 impl StartError {
@@ -117,6 +191,7 @@ impl StartError {
             StartError::NoConversions => 4,
             StartError::SamplingInstant { .. } => 5,
             StartError::Settings(_) => 6,
+            StartError::Store => 7,
         }
     }
 }
@@ -128,7 +203,50 @@ fn main() -> ! {
         board::SYSCLK_HZ / 1_000_000,
         board::CONTROL_RATE_HZ
     );
-    if let Err(e) = start() {
+    let mut app = match start() {
+        Ok(app) => app,
+        Err(e) => refused(e),
+    };
+    let mut seen = 0;
+    loop {
+        // Woken by every control interrupt: the link is served every 50 us; the status
+        // line once a second, never from the interrupt.
+        cortex_m::asm::wfi();
+        serve(&mut app);
+        if let Some(s) = STATUS.read_new(&mut seen) {
+            status_line(&s);
+        }
+    }
+}
+
+/// Bytes in to the dispatcher, its orders to the interrupt, the answers and telemetry out,
+/// and the save or restart it asks for once its answer has left the line.
+fn serve(app: &mut MainLoop) {
+    let taken = app
+        .dispatcher
+        .receive(app.link.received(), &mut app.ends, &mut app.store);
+    app.link.consume(taken);
+    app.dispatcher.poll(&mut app.ends);
+    let sent = app.link.send(app.dispatcher.tx());
+    app.dispatcher.sent(sent);
+    if let Some(action) = app.dispatcher.take_action() {
+        app.link.flush();
+        if let Action::Save(params) = action {
+            if !leave_save(&params) {
+                defmt::error!("the set to save does not encode: restarting without saving");
+            }
+        }
+        // The interrupt keeps feeding the watchdogs up to here; the reset stops the
+        // watchdogs, and the bridge coasts through it (pull-downs).
+        hw::force_coast();
+        SCB::sys_reset();
+    }
+}
+
+/// Start refused: bridge off, the reason recorded, the independent watchdog restarts the
+/// chip.
+fn refused(e: StartError) -> ! {
+    {
         hw::force_coast();
         record(Cause::StartRefused, e.code());
         defmt::error!(
@@ -139,14 +257,6 @@ fn main() -> ! {
         // latched (the record says the controller never drove).
         loop {
             cortex_m::asm::wfi();
-        }
-    }
-    let mut seen = 0;
-    loop {
-        // Woken by every control interrupt; logs once a second, never from the interrupt.
-        cortex_m::asm::wfi();
-        if let Some(s) = STATUS.read_new(&mut seen) {
-            status_line(&s);
         }
     }
 }
@@ -202,10 +312,11 @@ fn log_last_stop(flags: reset::Flags, last: Option<Record>, latched: Option<Faul
     }
 }
 
-/// Watchdog, clocks, PWM (lines low, phase checked), ADC, current-sensor zero with the
-/// bridge off (sampling instant checked), settings, main output, then the window watchdog
-/// and the control interrupt.
-fn start() -> Result<(), StartError> {
+/// The parameters (a pending save written first, then the stored set loaded, before any
+/// watchdog runs), watchdog, clocks, PWM (lines low, phase checked), ADC, current-sensor
+/// zero with the bridge off (sampling instant checked), settings, the link, main output,
+/// then the window watchdog and the control interrupt.
+fn start() -> Result<MainLoop, StartError> {
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         return Err(StartError::Peripherals);
     };
@@ -213,6 +324,27 @@ fn start() -> Result<(), StartError> {
     let last = take_record();
     let after_reset = reset::latched_after(flags, last);
     log_last_stop(flags, last, after_reset);
+
+    // The parameters, before the watchdogs: a save (and a repair of a store a power cut
+    // damaged) erases 128 KiB sectors, which takes seconds. The bridge coasts meanwhile
+    // (the board's pull-downs; TIM1 is not started yet). The set is built here for the
+    // nominal current zero and again below for the measured one.
+    let defaults = Params::new(board::ACTUATOR);
+    let rate_hz = board::ACTUATOR.board.rate_hz;
+    let save = take_save();
+    let flash = ChipFlash {
+        flash: LockedFlash::new(dp.FLASH),
+        writable: true,
+    };
+    let mut store = Store::new(flash, board::STORE_RANGE).map_err(|_| StartError::Store)?;
+    let nominal = Board {
+        rate_hz,
+        current_zero_code: None,
+    };
+    let mut boot = ema::device::boot(&mut store, &defaults, &nominal, save.as_ref())
+        .map_err(StartError::Settings)?;
+    store.flash().writable = false;
+    log_boot(&boot.source, boot.saved);
 
     // The independent watchdog first: a crystal that does not start hangs in the clock
     // set-up below, and the watchdog ends that (recorded as such).
@@ -262,36 +394,57 @@ fn start() -> Result<(), StartError> {
         spread,
         if plausible { "used" } else { "REFUSED" }
     );
-    let settings = board::settings(plausible.then_some(zero)).map_err(StartError::Settings)?;
-    let cfg = settings.build().map_err(StartError::Settings)?;
+    // The board's own refusals (the paper's force convention) still apply.
+    board::settings(None).map_err(StartError::Settings)?;
+    let board_now = Board {
+        rate_hz,
+        current_zero_code: plausible.then_some(zero),
+    };
+    let (control, analog) = boot.params.build(&board_now).map_err(StartError::Settings)?;
+    boot.install = Install { control, analog };
     defmt::info!(
-        "law {=str}, rate {=f32} Hz, set point {=f32} mm",
-        cfg.law().name(),
-        settings.rate_hz,
-        board::SETPOINT_M * 1e3
+        "law {=str}, rate {=f32} Hz; disarmed: the bench link arms and moves ({=u32} baud on USART2)",
+        control.law().name(),
+        rate_hz,
+        ema::protocol::BAUD
     );
 
-    let mut state = cfg.initial_state();
+    let (Some(capture), Some(queues), Some(rx), Some(tx)) = (
+        cortex_m::singleton!(: [Sample; CAPTURE_CAPACITY] = [Sample::default(); CAPTURE_CAPACITY]),
+        cortex_m::singleton!(: Queues = Queues::new()),
+        cortex_m::singleton!(: [u8; link::RX_RING] = [0; link::RX_RING]),
+        cortex_m::singleton!(: [u8; link::TX_BUFFER] = [0; link::TX_BUFFER]),
+    ) else {
+        return Err(StartError::Peripherals);
+    };
+    let mut controller = Controller::new(boot.install, board::CONTROL_PERIOD_CYCLES, capture);
     if let Some(fault) = after_reset {
         // The last run stopped while it may have been driving: never drive again without
         // a person looking (power cycle or reset pin).
-        cfg.trip(&mut state, &mut bridge, fault);
+        controller.trip(&mut bridge, fault);
     }
     if !plausible {
-        cfg.trip(&mut state, &mut bridge, Fault::CurrentOffset);
+        controller.trip(&mut bridge, Fault::CurrentOffset);
     }
+    let capacity = u16::try_from(CAPTURE_CAPACITY).unwrap_or(u16::MAX);
+    let dispatcher = Dispatcher::new(board_now, defaults, &boot, capacity);
+    let (main_ends, isr_ends) = queues.split();
+
+    let _tx_pin: Pin<{ board::LINK_PORT }, { board::LINK_TX_PIN }, Alternate<7>> =
+        gpioa.pa2.into_alternate();
+    let _rx_pin: Pin<{ board::LINK_PORT }, { board::LINK_RX_PIN }, Alternate<7>> =
+        gpioa.pa3.into_alternate().internal_pull_up(true);
+    let link = Link::start(dp.USART2, dp.DMA1, rx, tx, &mut rcc);
 
     // Nothing can fail from here on: the window watchdog, once started, only stops with a
     // reset.
     independent.feed();
     hw::enable_outputs();
     let control = Control {
-        cfg,
-        state,
+        controller,
         bridge,
         watchdogs: Watchdogs::start(independent),
-        guard: guard::Config::for_period(board::CONTROL_PERIOD_CYCLES),
-        guarded: guard::State::default(),
+        ends: Some(isr_ends),
         cycles: Cycles::new(),
     };
     irq::free(|cs| HANDOFF.borrow(cs).set(Some(control)));
@@ -307,7 +460,71 @@ fn start() -> Result<(), StartError> {
         NVIC::unmask(Interrupt::WWDG);
         NVIC::unmask(Interrupt::ADC);
     }
-    Ok(())
+    Ok(MainLoop {
+        dispatcher,
+        ends: main_ends,
+        link,
+        store,
+    })
+}
+
+/// Logs where the parameters came from and what the save this start made did.
+fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::protocol::StoreError>>) {
+    let from = match source {
+        Source::Stored => "the stored set",
+        Source::Defaults => "the built-in defaults (nothing stored)",
+        Source::Fallback(_) => "the built-in defaults (the stored set was refused)",
+    };
+    match saved {
+        None => defmt::info!("parameters: {=str}", from),
+        Some(Ok(())) => defmt::info!("parameters saved; in use: {=str}", from),
+        Some(Err(_)) => defmt::error!("parameters NOT saved; in use: {=str}", from),
+    }
+}
+
+/// The chip's flash as the parameter store sees it: writable at start (a pending save, a
+/// repair), then read-only for the main loop while the control interrupt runs (an erase
+/// stalls the bus for seconds; a load that would need a repair fails instead). One type
+/// for both, so the store's code is in the image once.
+struct ChipFlash {
+    flash: LockedFlash,
+    writable: bool,
+}
+
+impl ErrorType for ChipFlash {
+    type Error = stm32f4xx_hal::flash::Error;
+}
+
+impl ReadNorFlash for ChipFlash {
+    const READ_SIZE: usize = 1;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        ReadNorFlash::read(&mut self.flash, offset, bytes)
+    }
+
+    fn capacity(&self) -> usize {
+        ReadNorFlash::capacity(&self.flash)
+    }
+}
+
+impl NorFlash for ChipFlash {
+    const WRITE_SIZE: usize = 1;
+    /// Sectors 10 and 11 (`board::STORE_RANGE`) are 128 KiB each.
+    const ERASE_SIZE: usize = 128 * 1024;
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        if !self.writable {
+            return Err(stm32f4xx_hal::flash::Error::WriteProtection);
+        }
+        NorFlash::erase(&mut self.flash.unlocked(), from, to)
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        if !self.writable {
+            return Err(stm32f4xx_hal::flash::Error::WriteProtection);
+        }
+        NorFlash::write(&mut self.flash.unlocked(), offset, bytes)
+    }
 }
 
 /// Mean and spread of the current channel over board::ZERO_SAMPLES conversions, after
@@ -338,10 +555,12 @@ fn measure_current_zero(watchdog: &mut IndependentWatchdog) -> Result<(f32, u16)
 }
 
 /// The control interrupt: end of the injected conversions triggered by TIM1, once per PWM
-/// period. Reads the codes and the timer's flags, runs the tick through the guard (which
-/// latches a hardware trip or an overrun and says whether to feed), feeds the watchdogs
-/// when told, keeps the cycle statistics. No panic path (tests/qemu_no_panic.rs proves it
-/// for the tick and the guard; .ci/isr-calls for this handler).
+/// period. Reads the codes and the timer's flags, runs the application's tick
+/// (`ema::device::Controller`: at most one order from the main loop, the operating state,
+/// `Config::tick` through the guard when armed, telemetry and capture), restores the
+/// timer's main output when a hardware trip was cleared, feeds the watchdogs when told,
+/// keeps the cycle statistics. No panic path (tests/qemu_no_panic.rs and
+/// tests/qemu_device.rs for the tick; .ci/isr-calls for this handler).
 #[interrupt]
 fn ADC() {
     static mut CONTROL: Option<Control> = None;
@@ -354,38 +573,58 @@ fn ADC() {
     let Some(c) = CONTROL.as_mut() else {
         return;
     };
-    let setpoint_m = f32::from_bits(SETPOINT_M.load(Ordering::Relaxed));
-    let cfg = &c.cfg;
-    let outcome = c.guard.run(
-        &mut c.guarded,
-        cfg,
-        &mut c.state,
-        &mut c.bridge,
-        Start {
+    let inputs = Inputs {
+        frame,
+        // The analog set-point input is not converted on this board yet (see the module
+        // documentation of the firmware).
+        analog: 0,
+        start: Start {
             now: start,
             hardware_trip,
         },
-        |state, bridge| cfg.tick(state, bridge, &frame, setpoint_m),
-        || End {
-            next_due: NVIC::is_pending(Interrupt::ADC) || hw::conversion_pending(),
-            boundary_passed: hw::period_boundary_passed(),
-        },
-    );
-    if outcome.feed {
+        break_active: hw::break_input_active(),
+    };
+    // The queues' ends are `heapless` views, whose capacity is a length in memory: their
+    // index arithmetic divides by it. Taken into a local and checked against the
+    // constants they were made with, the compiler knows every divisor and no division by
+    // zero (a panic path) remains; .ci/isr-calls checks that on the image. A mismatch
+    // cannot happen; if it did, the bridge coasts and nothing feeds the watchdogs.
+    let Some(mut ends) = c.ends.take() else {
+        hw::force_coast();
+        return;
+    };
+    if ends.orders.capacity() != ORDER_SLOTS - 1
+        || ends.answers.capacity() != ANSWER_SLOTS - 1
+        || ends.samples.capacity() != SAMPLE_SLOTS - 1
+    {
+        hw::force_coast();
+        c.ends = Some(ends);
+        return;
+    }
+    let ticked = c.controller.tick(&mut c.bridge, &inputs, &mut ends, || End {
+        next_due: NVIC::is_pending(Interrupt::ADC) || hw::conversion_pending(),
+        boundary_passed: hw::period_boundary_passed(),
+    });
+    c.ends = Some(ends);
+    if ticked.restore_outputs {
+        hw::enable_outputs();
+    }
+    if ticked.feed {
         c.watchdogs.feed();
     }
     let end = hw::cycles();
+    let cycles = end.wrapping_sub(start);
+    c.controller
+        .record_cycles(cycles, board::STATUS_PERIOD_TICKS);
 
-    if let Some(cycles) = c
-        .cycles
-        .record(end.wrapping_sub(start), board::STATUS_PERIOD_TICKS)
-    {
-        let status = outcome.status;
+    if let Some(cycles) = c.cycles.record(cycles, board::STATUS_PERIOD_TICKS) {
+        let status = ticked.status;
+        let state = c.controller.state();
         STATUS.publish(&Snapshot {
-            ticks: c.state.ticks,
+            ticks: state.ticks,
             cycles,
-            overruns: c.guarded.overruns(),
-            fault: c.state.supervisor.latched().map_or(0, Fault::code),
+            overruns: c.controller.guarded().overruns(),
+            fault: state.supervisor.latched().map_or(0, Fault::code),
             mode: c.bridge.mode().code(),
             x_um: stats::scaled(status.measurement.x_m, 1e6),
             i_ma: stats::scaled(status.measurement.i_a, 1e3),

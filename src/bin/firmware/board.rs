@@ -9,6 +9,8 @@
 //! | position sensor | PC0 | ADC123_IN10 | 5-95 % of the range over the stroke ([`ema::sense::POSITION_M_PER_CODE`]) |
 //! | coil current | PC1 | ADC123_IN11 | bidirectional, mid-scale at 0 A ([`ema::sense::CURRENT_A_PER_CODE`]) |
 //! | bus voltage | PC2 | ADC123_IN12 | 22:1 divider ([`ema::sense::VBUS_V_PER_CODE`]) |
+//! | bench link TX | PA2 | USART2_TX (AF7), DMA1 stream 6 | [`ema::protocol::BAUD`] 8N1, 3.3 V levels, to any USB-serial adapter's RX |
+//! | bench link RX | PA3 | USART2_RX (AF7), DMA1 stream 5 | from the adapter's TX; the internal pull-up holds the line idle when nothing is connected |
 //! | crystal | PH0/PH1 | HSE | 8 MHz |
 //! | debug | PA13/PA14 | SWD | probe-rs, defmt over RTT |
 //!
@@ -225,6 +227,17 @@ pub const EN_PIN: u8 = 9;
 /// the bridge (EN pull-down).
 pub const WATCHDOG_TIMEOUT_MS: u32 = 2;
 
+/// The parameter store's flash range, as offsets from the flash's start (0x0800_0000):
+/// sectors 10 and 11 (128 KiB each), which `memory.x` keeps out of the image's FLASH
+/// region (its STORE region; the two must agree).
+pub const STORE_RANGE: core::ops::Range<u32> = 0x000C_0000..0x0010_0000;
+/// Port of the bench link's two pins.
+pub const LINK_PORT: char = 'A';
+/// The bench link's transmit pin (USART2_TX in alternate function 7).
+pub const LINK_TX_PIN: u8 = 2;
+/// The bench link's receive pin (USART2_RX in alternate function 7).
+pub const LINK_RX_PIN: u8 = 3;
+
 /// Port of the break input (TIM1_BKIN in alternate function 1).
 pub const BREAK_PORT: char = 'B';
 /// Pin number of the break input.
@@ -257,9 +270,6 @@ pub const ZERO_TOLERANCE_CODES: f32 = 100.0;
 /// Largest accepted spread (max - min) of the zero samples \[codes\]: 0.5 A of noise.
 pub const ZERO_MAX_SPREAD_CODES: u16 = 62;
 
-/// Position set point at start \[m\]: three quarters of the stroke (the paper's 3 mm on
-/// the product's actuator).
-pub const SETPOINT_M: f32 = 0.75 * ACTUATOR.mechanics.stroke_m;
 /// Ticks between two status lines (one second).
 pub const STATUS_PERIOD_TICKS: u32 = CONTROL_RATE_HZ;
 

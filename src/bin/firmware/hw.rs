@@ -5,7 +5,8 @@
 //!
 //! Everything here runs before the control interrupt is enabled, except [`take_frame`],
 //! [`begin_period`], [`period_boundary_passed`], [`conversion_pending`], [`cycles`],
-//! [`Pwm`], [`Line`] and [`Watchdogs::feed`], which the interrupt uses, and
+//! [`break_input_active`], [`enable_outputs`] (after a cleared hardware trip), [`Pwm`],
+//! [`Line`] and [`Watchdogs::feed`], which the interrupt uses, and
 //! [`force_coast`] and [`clear_clock_failure`], which the fault handlers use.
 
 use core::convert::Infallible;
@@ -298,6 +299,15 @@ pub fn enable_outputs() {
 /// start: its input is active).
 pub fn hardware_tripped() -> bool {
     tim1().sr().read().bits() & regs::SR_BIF != 0
+}
+
+/// The break input is active now (its cause is still there: the pin is low), as opposed to
+/// the break flag, which records that it was.
+#[inline(always)]
+pub fn break_input_active() -> bool {
+    // SAFETY: a read of GPIOB's input data register, which has no side effect.
+    let gpiob = unsafe { &*pac::GPIOB::ptr() };
+    gpiob.idr().read().bits() & (1 << board::BREAK_PIN) == 0
 }
 
 /// At the interrupt's start: whether the bridge's hardware protection has switched the

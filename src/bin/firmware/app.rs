@@ -1,11 +1,10 @@
 //! Start-up, the control interrupt, the main loop (the bench link and the status line),
 //! the window watchdog's early wake-up, and the panic and fault handlers.
 
-use core::cell::Cell;
 use core::mem::MaybeUninit;
 use core::ptr::addr_of_mut;
+use core::sync::atomic::{compiler_fence, Ordering};
 
-use cortex_m::interrupt::{self as irq, Mutex};
 use cortex_m::peripheral::{NVIC, SCB};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
@@ -66,8 +65,20 @@ struct MainLoop {
     store: Store<ChipFlash>,
 }
 
-/// Start-up hands the controller to the interrupt through this cell, once.
-static HANDOFF: Mutex<Cell<Option<Control>>> = Mutex::new(Cell::new(None));
+/// What the control interrupt owns: written once by start-up, before the interrupt is
+/// unmasked, and then only touched by the interrupt. All zeros at reset (`.bss`): an
+/// `Option<Control>` would be in `.data` (its `None` is not all zeros), its initial value
+/// costing flash, and a hand-over cell would hold a second copy in RAM.
+static mut CONTROL: Slot = Slot {
+    ready: false,
+    control: MaybeUninit::uninit(),
+};
+
+/// [`CONTROL`]: `ready` once `control` holds the controller.
+struct Slot {
+    ready: bool,
+    control: MaybeUninit<Control>,
+}
 /// Status for the main loop.
 static STATUS: Published = Published::new();
 
@@ -447,12 +458,21 @@ fn start() -> Result<MainLoop, StartError> {
         ends: Some(isr_ends),
         cycles: Cycles::new(),
     };
-    irq::free(|cs| HANDOFF.borrow(cs).set(Some(control)));
+    // SAFETY: the control interrupt is masked (never unmasked yet) and nothing else touches
+    // CONTROL; `ready` is set after the write, and the fences keep both before the
+    // unmasking below.
+    unsafe {
+        let slot = addr_of_mut!(CONTROL);
+        (*slot).control.write(control);
+        compiler_fence(Ordering::SeqCst);
+        (*slot).ready = true;
+    }
+    compiler_fence(Ordering::SeqCst);
     // Drop a conversion that completed meanwhile, then let the interrupts run.
     let _ = hw::take_frame();
     NVIC::unpend(Interrupt::ADC);
     NVIC::unpend(Interrupt::WWDG);
-    // SAFETY: the handlers' state is in HANDOFF and RECORD; unmasking cannot break a
+    // SAFETY: the handlers' state is in CONTROL and RECORD; unmasking cannot break a
     // critical section (none is open here). The early wake-up outranks the tick.
     unsafe {
         cp.NVIC.set_priority(Interrupt::WWDG, WWDG_PRIORITY);
@@ -563,16 +583,18 @@ fn measure_current_zero(watchdog: &mut IndependentWatchdog) -> Result<(f32, u16)
 /// tests/qemu_device.rs for the tick; .ci/isr-calls for this handler).
 #[interrupt]
 fn ADC() {
-    static mut CONTROL: Option<Control> = None;
     let start = hw::cycles();
     let hardware_trip = hw::begin_period();
     let frame = hw::take_frame();
-    if CONTROL.is_none() {
-        *CONTROL = irq::free(|cs| HANDOFF.borrow(cs).take());
-    }
-    let Some(c) = CONTROL.as_mut() else {
+    // SAFETY: `ready` is set only after start-up has written `control`, and start-up never
+    // touches CONTROL again; this handler does not re-enter itself, and nothing else uses
+    // CONTROL.
+    let slot = unsafe { &mut *addr_of_mut!(CONTROL) };
+    if !slot.ready {
         return;
-    };
+    }
+    // SAFETY: as above: `ready`, so `control` is initialised.
+    let c = unsafe { slot.control.assume_init_mut() };
     let inputs = Inputs {
         frame,
         // The analog set-point input is not converted on this board yet (see the module

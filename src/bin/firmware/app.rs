@@ -363,9 +363,9 @@ fn start() -> Result<MainLoop, StartError> {
     independent.start(board::WATCHDOG_TIMEOUT_MS.millis());
     hw::freeze_on_debug_halt(&dp.DBGMCU);
     record(Cause::ClockSetup, 0);
-    let mut rcc = dp.RCC.freeze(hw::clocks());
+    let mut rcc = hw::start_clocks(dp.RCC);
     let _ = take_record();
-    if !hw::clocks_ok(&rcc) {
+    if !hw::clocks_ok() {
         return Err(StartError::Clocks);
     }
     hw::start_clock_security();

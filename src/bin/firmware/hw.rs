@@ -16,7 +16,7 @@ use ema::sense::Frame;
 use stm32f4xx_hal::gpio;
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::{self, Enable, Rcc, Reset};
+use stm32f4xx_hal::rcc::{Enable, Rcc, Reset};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::board;
@@ -128,21 +128,53 @@ fn enable_off_now() {
 /// The H-bridge as the firmware drives it.
 pub type Bridge = ema::bridge::HBridge<Pwm, Line>;
 
-/// The clock tree: 168 MHz from the 8 MHz crystal, APB1 42 MHz, APB2 84 MHz.
-pub fn clocks() -> rcc::Config {
-    rcc::Config::hse(board::HSE_HZ.Hz())
-        .sysclk(board::SYSCLK_HZ.Hz())
-        .hclk(board::SYSCLK_HZ.Hz())
-        .pclk1(board::PCLK1_HZ.Hz())
-        .pclk2(board::PCLK2_HZ.Hz())
+/// The clock tree: 168 MHz from the 8 MHz crystal, APB1 42 MHz, APB2 84 MHz, by register
+/// writes ([`regs::RCC_PLLCFGR`] and its neighbours), in the order the HAL's `Rcc::freeze`
+/// makes them; then waits for the switch to the PLL. Hangs if the crystal does not start
+/// (the independent watchdog ends that). The returned `Rcc` enables and resets the
+/// peripherals; its `clocks` field is the HAL's default and means nothing here (nothing
+/// reads it: the timer, ADC and USART values come from `board`).
+pub fn start_clocks(rcc: pac::RCC) -> Rcc {
+    // SAFETY: register values from RM0090 (see `regs`); start-up owns RCC and FLASH here,
+    // nothing else runs yet.
+    unsafe {
+        let flash = &*pac::FLASH::ptr();
+        flash
+            .acr()
+            .modify(|r, w| w.bits((r.bits() & !regs::FLASH_ACR_MASK) | regs::FLASH_ACR));
+        rcc.cr().modify(|r, w| w.bits(r.bits() | regs::RCC_CR_HSEON));
+        while rcc.cr().read().bits() & regs::RCC_CR_HSERDY == 0 {}
+        rcc.pllcfgr().write(|w| w.bits(regs::RCC_PLLCFGR));
+        rcc.cr().modify(|r, w| w.bits(r.bits() | regs::RCC_CR_PLLON));
+        while rcc.cr().read().bits() & regs::RCC_CR_PLLRDY == 0 {}
+        rcc.cfgr()
+            .modify(|r, w| w.bits(r.bits() & !regs::RCC_CFGR_I2SSRC));
+        rcc.cfgr().modify(|r, w| {
+            w.bits((r.bits() & !regs::RCC_CFGR_PRE_MASK) | regs::RCC_CFGR_PRE)
+        });
+        // "The clocks are divided with the new prescaler factor from 1 to 16 AHB cycles
+        // after write" (RM0090 7.3.3).
+        cortex_m::asm::delay(16);
+        rcc.cfgr().modify(|r, w| {
+            w.bits((r.bits() & !regs::RCC_CFGR_SW_MASK) | regs::RCC_CFGR_SW_PLL)
+        });
+        while rcc.cfgr().read().bits() & regs::RCC_CFGR_SWS_MASK != regs::RCC_CFGR_SWS_PLL {}
+    }
+    rcc.constrain()
 }
 
-/// `true` when the clock tree came out as [`clocks`] asked.
-pub fn clocks_ok(rcc: &Rcc) -> bool {
-    let c = &rcc.clocks;
-    c.sysclk().raw() == board::SYSCLK_HZ
-        && c.pclk1().raw() == board::PCLK1_HZ
-        && c.pclk2().raw() == board::PCLK2_HZ
+/// `true` when the clock tree is the one [`start_clocks`] set: read back from the
+/// registers (PLL configuration and lock, prescalers, system clock source, flash wait
+/// states).
+pub fn clocks_ok() -> bool {
+    // SAFETY: reads only.
+    let (rcc, flash) = unsafe { (&*pac::RCC::ptr(), &*pac::FLASH::ptr()) };
+    let cfgr = rcc.cfgr().read().bits();
+    rcc.pllcfgr().read().bits() == regs::RCC_PLLCFGR
+        && rcc.cr().read().bits() & regs::RCC_CR_PLLRDY != 0
+        && cfgr & regs::RCC_CFGR_PRE_MASK == regs::RCC_CFGR_PRE
+        && cfgr & regs::RCC_CFGR_SWS_MASK == regs::RCC_CFGR_SWS_PLL
+        && flash.acr().read().bits() & regs::FLASH_ACR_MASK == regs::FLASH_ACR
 }
 
 /// The watchdog reset flags of the last reset; clears all reset flags.

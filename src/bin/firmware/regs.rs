@@ -119,6 +119,63 @@ pub const RCC_CR_CSSON: u32 = 1 << 19;
 /// RCC_CIR.CSSC, bit 23: clears the clock-security flag (and with it the NMI).
 pub const RCC_CIR_CSSC: u32 = 1 << 23;
 
+// ---------- Clock tree (RM0090 sections 3.9, 7.3.1 to 7.3.3) ----------
+//
+// 168 MHz from the 8 MHz crystal through the main PLL, APB1 at a quarter, APB2 at half:
+// the values the HAL's `Rcc::freeze` computed for this request (its PLL search is 2.7 KiB
+// of flash), written directly.
+
+/// PLLM: the PLL's input, HSE / 4 = 2 MHz (1 to 2 MHz; 2 MHz for the least jitter).
+pub const PLL_M: u32 = 4;
+/// PLLN: the VCO, 2 MHz x 168 = 336 MHz (100 to 432 MHz).
+pub const PLL_N: u32 = 168;
+/// PLLP: the system clock, 336 MHz / 2 = 168 MHz.
+pub const PLL_P: u32 = 2;
+/// PLLQ: the 48 MHz clock, 336 MHz / 7 (unused; the HAL's choice, the lowest divider that
+/// keeps it at or below 48 MHz).
+pub const PLL_Q: u32 = 7;
+/// RCC_PLLCFGR (7.3.2): PLLM (bits 5:0), PLLN (14:6), PLLP (17:16, 00 = /2), PLLSRC
+/// (bit 22, HSE), PLLQ (27:24); bit 29 is reserved and kept at its reset value 1.
+pub const RCC_PLLCFGR: u32 =
+    (1 << 29) | (PLL_Q << 24) | (1 << 22) | ((PLL_P / 2 - 1) << 16) | (PLL_N << 6) | PLL_M;
+/// RCC_CR.HSEON, bit 16 (7.3.1).
+pub const RCC_CR_HSEON: u32 = 1 << 16;
+/// RCC_CR.HSERDY, bit 17.
+pub const RCC_CR_HSERDY: u32 = 1 << 17;
+/// RCC_CR.PLLON, bit 24.
+pub const RCC_CR_PLLON: u32 = 1 << 24;
+/// RCC_CR.PLLRDY, bit 25.
+pub const RCC_CR_PLLRDY: u32 = 1 << 25;
+/// RCC_CFGR prescaler fields (7.3.3): HPRE (bits 7:4), PPRE1 (12:10), PPRE2 (15:13).
+pub const RCC_CFGR_PRE_MASK: u32 = (0b111 << 13) | (0b111 << 10) | (0b1111 << 4);
+/// RCC_CFGR prescalers: AHB /1 (HPRE = 0), APB1 /4 (PPRE1 = 101), APB2 /2 (PPRE2 = 100).
+pub const RCC_CFGR_PRE: u32 = (0b100 << 13) | (0b101 << 10);
+/// RCC_CFGR.SW (bits 1:0).
+pub const RCC_CFGR_SW_MASK: u32 = 0b11;
+/// RCC_CFGR.SW = 10: the PLL drives the system clock.
+pub const RCC_CFGR_SW_PLL: u32 = 0b10;
+/// RCC_CFGR.SWS (bits 3:2): what drives the system clock.
+pub const RCC_CFGR_SWS_MASK: u32 = 0b11 << 2;
+/// RCC_CFGR.SWS = 10: the PLL.
+pub const RCC_CFGR_SWS_PLL: u32 = 0b10 << 2;
+/// RCC_CFGR.I2SSRC, bit 23 (0: the I2S PLL; the HAL clears it).
+pub const RCC_CFGR_I2SSRC: u32 = 1 << 23;
+/// FLASH_ACR.LATENCY (bits 2:0, 3.9): wait states, one per 30 MHz started at 2.7 to 3.6 V.
+pub const FLASH_LATENCY: u32 = (board::SYSCLK_HZ - 1) / 30_000_000;
+/// FLASH_ACR fields the set-up writes: LATENCY and the prefetch, instruction and data
+/// caches (PRFTEN, ICEN, DCEN: bits 8, 9, 10).
+pub const FLASH_ACR_MASK: u32 = 0b111 | (0b111 << 8);
+/// FLASH_ACR as the set-up writes those fields.
+pub const FLASH_ACR: u32 = FLASH_LATENCY | (0b111 << 8);
+
+// The clock tree these values give is the one `board` documents.
+const _: () = assert!(board::HSE_HZ / PLL_M >= 1_000_000 && board::HSE_HZ / PLL_M <= 2_000_000);
+const _: () = assert!(board::HSE_HZ / PLL_M * PLL_N >= 100_000_000);
+const _: () = assert!(board::HSE_HZ / PLL_M * PLL_N <= 432_000_000);
+const _: () = assert!(board::HSE_HZ % PLL_M == 0 && board::HSE_HZ / PLL_M * PLL_N / PLL_P == board::SYSCLK_HZ);
+const _: () = assert!(board::HSE_HZ / PLL_M * PLL_N / PLL_Q <= 48_000_000);
+const _: () = assert!(board::SYSCLK_HZ / 4 == board::PCLK1_HZ && board::SYSCLK_HZ / 2 == board::PCLK2_HZ);
+
 // ---------- Checks of the PWM's phase at start ----------
 
 /// Whether the update event falls at the top of the count: read just after an update, the
@@ -184,6 +241,20 @@ mod tests {
         assert_eq!(WWDG_CFR, 0x27F);
         assert_eq!(WWDG_CR, 0xC3);
         assert_eq!((RCC_CR_CSSON, RCC_CIR_CSSC), (0x8_0000, 0x80_0000));
+    }
+
+    #[test]
+    fn clock_registers_match_the_reference_manual_bits() {
+        // PLLCFGR: reserved bit 29, Q = 7, HSE, P = 00, N = 168, M = 4.
+        assert_eq!(RCC_PLLCFGR, 0x2740_2A04);
+        assert_eq!((RCC_CR_HSEON, RCC_CR_HSERDY), (0x1_0000, 0x2_0000));
+        assert_eq!((RCC_CR_PLLON, RCC_CR_PLLRDY), (0x100_0000, 0x200_0000));
+        assert_eq!(RCC_CFGR_PRE, 0x9400);
+        assert_eq!(RCC_CFGR_PRE_MASK, 0xFCF0);
+        assert_eq!((RCC_CFGR_SW_PLL, RCC_CFGR_SWS_PLL), (2, 8));
+        // Five wait states at 168 MHz (RM0090 table 10), prefetch and both caches on.
+        assert_eq!(FLASH_LATENCY, 5);
+        assert_eq!(FLASH_ACR, 0x705);
     }
 
     #[test]

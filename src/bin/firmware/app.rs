@@ -2,7 +2,7 @@
 //! the window watchdog's early wake-up, and the panic and fault handlers.
 
 use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
+use core::ptr::{addr_of, addr_of_mut};
 use core::sync::atomic::{compiler_fence, Ordering};
 
 use cortex_m::peripheral::{NVIC, SCB};
@@ -129,13 +129,15 @@ fn leave_save(params: &Params) -> bool {
         return false;
     };
     // SAFETY: a valid, aligned static; single core; only the main loop (here, just before
-    // a reset) and start-up (before any interrupt) touch it.
+    // a reset) and start-up (before any interrupt) touch it. Field by field (one volatile
+    // copy of the whole struct is unrolled into hundreds of bytes of code): the record and
+    // its length first, the marker that makes them valid last.
     unsafe {
-        addr_of_mut!(PENDING_SAVE).cast::<PendingSave>().write_volatile(PendingSave {
-            marker: SAVE_MARKER,
-            len: len as u32,
-            record,
-        });
+        let p = addr_of_mut!(PENDING_SAVE).cast::<PendingSave>();
+        addr_of_mut!((*p).record).write(record);
+        addr_of_mut!((*p).len).write_volatile(len as u32);
+        compiler_fence(Ordering::SeqCst);
+        addr_of_mut!((*p).marker).write_volatile(SAVE_MARKER);
     }
     true
 }
@@ -145,16 +147,18 @@ fn leave_save(params: &Params) -> bool {
 fn take_save() -> Option<Params> {
     // SAFETY: as in `leave_save`; after a power-on the RAM holds arbitrary bits, which the
     // marker and the record's CRC reject.
-    let pending = unsafe {
+    let (marker, len, record) = unsafe {
         let p = addr_of_mut!(PENDING_SAVE).cast::<PendingSave>();
-        let pending = p.read_volatile();
-        p.cast::<u32>().write_volatile(0);
-        pending
+        let marker = addr_of!((*p).marker).read_volatile();
+        let len = addr_of!((*p).len).read_volatile();
+        addr_of_mut!((*p).marker).write_volatile(0);
+        compiler_fence(Ordering::SeqCst);
+        (marker, len, addr_of!((*p).record).read())
     };
-    if pending.marker != SAVE_MARKER {
+    if marker != SAVE_MARKER {
         return None;
     }
-    let record = pending.record.get(..pending.len as usize)?;
+    let record = record.get(..len as usize)?;
     store::decode(record).ok()
 }
 

@@ -344,6 +344,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
     /// Disarmed, with `install`, the guard for ticks `period` counts apart, and
     /// `capture` as the capture buffer.
     #[must_use]
+    #[inline(never)]
     pub fn new(install: Install, period: u32, capture: C) -> Self {
         Self {
             cfg: install.control,
@@ -971,6 +972,7 @@ pub struct Boot {
 ///
 /// # Errors
 /// The defaults themselves do not build (a firmware built for an actuator it refuses).
+#[inline(never)]
 pub fn boot<F: embedded_storage::nor_flash::NorFlash>(
     store: &mut Store<F>,
     defaults: &Params,
@@ -1261,6 +1263,7 @@ impl Dispatcher {
         }))
     }
 
+    #[inline(never)]
     fn handle(
         &mut self,
         seq: u16,
@@ -1442,6 +1445,7 @@ impl Dispatcher {
         }
     }
 
+    #[inline(never)]
     fn complete(&mut self, p: Pending, outcome: Outcome) {
         let reply = match outcome {
             Outcome::Done(Err(r)) => Reply::Refused(r),

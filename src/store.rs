@@ -212,6 +212,7 @@ impl<F: NorFlash> Store<F> {
     ///
     /// # Errors
     /// The flash failing, no room, or a set too big for a record.
+    #[inline(never)]
     pub fn save(&mut self, params: &Params) -> Result<(), StoreError> {
         let mut record = [0u8; MAX_RECORD];
         let n = encode(params, &mut record)?;

@@ -79,6 +79,37 @@ struct Slot {
     ready: bool,
     control: MaybeUninit<Control>,
 }
+/// The buffers start-up hands out (capture, queues, the link's): empty, all zeros at reset
+/// (`.bss`: no initial values in flash, no copy through the stack, no fill loop).
+struct Buffers {
+    capture: [Sample; CAPTURE_CAPACITY],
+    queues: Queues,
+    rx: [u8; link::RX_RING],
+    tx: [u8; link::TX_BUFFER],
+}
+
+/// `Sample::default()`, as a constant.
+const NO_SAMPLE: Sample = Sample {
+    r_m: 0.0,
+    x_m: 0.0,
+    v_mps: 0.0,
+    i_a: 0.0,
+    u_v: 0.0,
+    duty: 0.0,
+    vbus_v: 0.0,
+    analog_m: 0.0,
+    fault: 0,
+    mode: 0,
+};
+
+/// Taken once, by `start`.
+static mut BUFFERS: Buffers = Buffers {
+    capture: [NO_SAMPLE; CAPTURE_CAPACITY],
+    queues: Queues::new(),
+    rx: [0; link::RX_RING],
+    tx: [0; link::TX_BUFFER],
+};
+
 /// Status for the main loop.
 static STATUS: Published = Published::new();
 
@@ -424,14 +455,14 @@ fn start() -> Result<MainLoop, StartError> {
         ema::protocol::BAUD
     );
 
-    let (Some(capture), Some(queues), Some(rx), Some(tx)) = (
-        cortex_m::singleton!(: [Sample; CAPTURE_CAPACITY] = [Sample::default(); CAPTURE_CAPACITY]),
-        cortex_m::singleton!(: Queues = Queues::new()),
-        cortex_m::singleton!(: [u8; link::RX_RING] = [0; link::RX_RING]),
-        cortex_m::singleton!(: [u8; link::TX_BUFFER] = [0; link::TX_BUFFER]),
-    ) else {
-        return Err(StartError::Peripherals);
-    };
+    // SAFETY: `start` gets here at most once (`pac::Peripherals::take` above succeeds only
+    // once), so these are the only references to BUFFERS ever made.
+    let Buffers {
+        capture,
+        queues,
+        rx,
+        tx,
+    } = unsafe { &mut *addr_of_mut!(BUFFERS) };
     let mut controller = Controller::new(boot.install, board::CONTROL_PERIOD_CYCLES, capture);
     if let Some(fault) = after_reset {
         // The last run stopped while it may have been driving: never drive again without

@@ -1206,6 +1206,7 @@ impl Dispatcher {
         }
     }
 
+    #[inline(never)]
     fn reject(&mut self, e: FrameError) {
         self.rejected = self.rejected.saturating_add(1);
         self.send(&Message::Rejected(e));

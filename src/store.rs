@@ -164,6 +164,7 @@ pub fn decode(record: &[u8]) -> Result<Params, LoadError<'static>> {
     }
 }
 
+#[inline(never)]
 fn store_error<E>(e: &sequential_storage::Error<E>) -> StoreError {
     match e {
         sequential_storage::Error::Storage { .. } => StoreError::Flash,

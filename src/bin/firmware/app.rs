@@ -267,6 +267,7 @@ fn main() -> ! {
 
 /// Bytes in to the dispatcher, its orders to the interrupt, the answers and telemetry out,
 /// and the save or restart it asks for once its answer has left the line.
+#[inline(never)]
 fn serve(app: &mut MainLoop) {
     let taken = app
         .dispatcher

@@ -131,6 +131,7 @@ pub fn finite(param: &'static str, value: f32) -> Result<f32, Error> {
 ///
 /// # Errors
 /// [`Reason::NotFinite`] or [`Reason::NotPositive`] for `param`.
+#[inline(never)]
 pub fn positive(param: &'static str, value: f32) -> Result<f32, Error> {
     finite(param, value)?;
     if value > 0.0 {
@@ -165,6 +166,7 @@ pub fn at_least(param: &'static str, value: f32, min: f32) -> Result<f32, Error>
 ///
 /// # Errors
 /// [`Reason::NotFinite`], [`Reason::BelowMin`] or [`Reason::AboveMax`] for `param`.
+#[inline(never)]
 pub fn within(param: &'static str, value: f32, min: f32, max: f32) -> Result<f32, Error> {
     at_least(param, value, min)?;
     if value <= max {

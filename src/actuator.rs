@@ -623,6 +623,7 @@ impl Actuator {
     ///
     /// # Errors
     /// As [`Actuator::plant`].
+    #[inline(never)]
     pub fn tuning_or_default(&self) -> Result<Tuning, Error> {
         if let Some(t) = self.tuning {
             self.validate()?;

@@ -374,6 +374,7 @@ impl Envelope {
     /// The weakest magnet of the bounds: `rho_x = rho_x_hi` (smallest surface). Its force
     /// coefficient equals `mu_lo(g)` wherever `g > rho_0 / rho_x_lo`.
     #[must_use]
+    #[inline(never)]
     pub fn weakest(&self) -> Nominal {
         Nominal {
             n2: self.n2,
@@ -714,6 +715,7 @@ impl Plant {
     ///
     /// # Errors
     /// As [`Plant::validate`].
+    #[inline(never)]
     pub fn envelope(&self) -> Result<Envelope, Error> {
         self.validate()?;
         Envelope::new(&self.magnetics, &self.bounds)

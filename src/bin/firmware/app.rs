@@ -194,6 +194,7 @@ fn take_save() -> Option<Params> {
 }
 
 /// The recorded cause, if any; clears it.
+#[inline(never)]
 fn take_record() -> Option<Record> {
     // SAFETY: as in `record`; start-up runs before any handler that records.
     unsafe {
@@ -554,6 +555,7 @@ impl ErrorType for ChipFlash {
 impl ReadNorFlash for ChipFlash {
     const READ_SIZE: usize = 1;
 
+    #[inline(never)]
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
         ReadNorFlash::read(&mut self.flash, offset, bytes)
     }
@@ -575,6 +577,7 @@ impl NorFlash for ChipFlash {
         NorFlash::erase(&mut self.flash.unlocked(), from, to)
     }
 
+    #[inline(never)]
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         if !self.writable {
             return Err(stm32f4xx_hal::flash::Error::WriteProtection);

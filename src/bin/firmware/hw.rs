@@ -435,6 +435,7 @@ impl Watchdogs {
     /// Starts the window watchdog (board::WINDOW_WATCHDOG, early-wakeup interrupt on; its
     /// NVIC line is unmasked by the caller) beside the running independent one. Once
     /// started, only a reset stops it: every step that can fail comes before.
+    #[inline(never)]
     pub fn start(independent: IndependentWatchdog) -> Self {
         // SAFETY: RCC_APB1ENR: one more clock enable bit, written back as read otherwise;
         // the WWDG values come from `regs` (checked against RM0090 21.6).

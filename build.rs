@@ -93,6 +93,9 @@ fn main() {
     fs::copy("memory.x", out.join("memory.x")).expect("memory.x is at the package root");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-bin=firmware=-Tdefmt.x");
+    // Identical code folding: functions whose machine code is the same (monomorphisations
+    // of one generic for types of one layout, identical closures) are kept once.
+    println!("cargo:rustc-link-arg-bin=firmware=--icf=all");
 }
 
 /// Stops the build with `message` (cargo shows it as the script's error).

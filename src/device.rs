@@ -1497,13 +1497,16 @@ fn to_front(bytes: &mut [u8], n: usize) {
     let rest = bytes.len().saturating_sub(n);
     let mut at = 0;
     while n > 0 && at < rest {
-        let len = n.min(rest - at);
-        if let Some((head, tail)) = bytes.split_at_mut_checked(at + n) {
-            if let (Some(to), Some(from)) = (head.get_mut(at..at + len), tail.get(..len)) {
+        // at < rest <= bytes.len() and n <= bytes.len(): nothing wraps.
+        let len = n.min(rest.wrapping_sub(at));
+        if let Some((head, tail)) = bytes.split_at_mut_checked(at.wrapping_add(n)) {
+            if let (Some(to), Some(from)) =
+                (head.get_mut(at..at.wrapping_add(len)), tail.get(..len))
+            {
                 to.copy_from_slice(from);
             }
         }
-        at += len;
+        at = at.wrapping_add(len);
     }
 }
 

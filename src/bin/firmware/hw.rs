@@ -142,22 +142,22 @@ pub fn start_clocks(rcc: pac::RCC) -> Rcc {
         flash
             .acr()
             .modify(|r, w| w.bits((r.bits() & !regs::FLASH_ACR_MASK) | regs::FLASH_ACR));
-        rcc.cr().modify(|r, w| w.bits(r.bits() | regs::RCC_CR_HSEON));
+        rcc.cr()
+            .modify(|r, w| w.bits(r.bits() | regs::RCC_CR_HSEON));
         while rcc.cr().read().bits() & regs::RCC_CR_HSERDY == 0 {}
         rcc.pllcfgr().write(|w| w.bits(regs::RCC_PLLCFGR));
-        rcc.cr().modify(|r, w| w.bits(r.bits() | regs::RCC_CR_PLLON));
+        rcc.cr()
+            .modify(|r, w| w.bits(r.bits() | regs::RCC_CR_PLLON));
         while rcc.cr().read().bits() & regs::RCC_CR_PLLRDY == 0 {}
         rcc.cfgr()
             .modify(|r, w| w.bits(r.bits() & !regs::RCC_CFGR_I2SSRC));
-        rcc.cfgr().modify(|r, w| {
-            w.bits((r.bits() & !regs::RCC_CFGR_PRE_MASK) | regs::RCC_CFGR_PRE)
-        });
+        rcc.cfgr()
+            .modify(|r, w| w.bits((r.bits() & !regs::RCC_CFGR_PRE_MASK) | regs::RCC_CFGR_PRE));
         // "The clocks are divided with the new prescaler factor from 1 to 16 AHB cycles
         // after write" (RM0090 7.3.3).
         cortex_m::asm::delay(16);
-        rcc.cfgr().modify(|r, w| {
-            w.bits((r.bits() & !regs::RCC_CFGR_SW_MASK) | regs::RCC_CFGR_SW_PLL)
-        });
+        rcc.cfgr()
+            .modify(|r, w| w.bits((r.bits() & !regs::RCC_CFGR_SW_MASK) | regs::RCC_CFGR_SW_PLL));
         while rcc.cfgr().read().bits() & regs::RCC_CFGR_SWS_MASK != regs::RCC_CFGR_SWS_PLL {}
     }
     rcc.constrain()

@@ -169,12 +169,15 @@ pub const FLASH_ACR_MASK: u32 = 0b111 | (0b111 << 8);
 pub const FLASH_ACR: u32 = FLASH_LATENCY | (0b111 << 8);
 
 // The clock tree these values give is the one `board` documents.
-const _: () = assert!(board::HSE_HZ / PLL_M >= 1_000_000 && board::HSE_HZ / PLL_M <= 2_000_000);
+const _: () = assert!(board::HSE_HZ / PLL_M >= 1_000_000);
+const _: () = assert!(board::HSE_HZ / PLL_M <= 2_000_000);
 const _: () = assert!(board::HSE_HZ / PLL_M * PLL_N >= 100_000_000);
 const _: () = assert!(board::HSE_HZ / PLL_M * PLL_N <= 432_000_000);
-const _: () = assert!(board::HSE_HZ % PLL_M == 0 && board::HSE_HZ / PLL_M * PLL_N / PLL_P == board::SYSCLK_HZ);
+const _: () = assert!(board::HSE_HZ.is_multiple_of(PLL_M));
+const _: () = assert!(board::HSE_HZ / PLL_M * PLL_N / PLL_P == board::SYSCLK_HZ);
 const _: () = assert!(board::HSE_HZ / PLL_M * PLL_N / PLL_Q <= 48_000_000);
-const _: () = assert!(board::SYSCLK_HZ / 4 == board::PCLK1_HZ && board::SYSCLK_HZ / 2 == board::PCLK2_HZ);
+const _: () =
+    assert!(board::SYSCLK_HZ / 4 == board::PCLK1_HZ && board::SYSCLK_HZ / 2 == board::PCLK2_HZ);
 
 // ---------- Checks of the PWM's phase at start ----------
 

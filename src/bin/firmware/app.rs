@@ -668,6 +668,9 @@ fn ADC() {
     });
     c.ends = Some(ends);
     if ticked.restore_outputs {
+        // The tick consumed the flag it read: clear it, or the next tick latches the
+        // trip again.
+        hw::clear_break_flag();
         hw::enable_outputs();
     }
     if ticked.feed {

@@ -327,6 +327,12 @@ pub fn enable_outputs() {
         .modify(|r, w| unsafe { w.bits(r.bits() | regs::BDTR_MOE) });
 }
 
+/// Clears the break flag (the record of a hardware trip) once a clear has accepted the
+/// trip with its cause gone; the other flags are written 1 (no change).
+pub fn clear_break_flag() {
+    tim1().sr().write(|w| w.bif().clear());
+}
+
 /// The break flag is set: the bridge's hardware protection switched the outputs off (at
 /// start: its input is active).
 pub fn hardware_tripped() -> bool {

@@ -5,9 +5,14 @@
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
 /// Cycle counts of the ticks of the current window, and the maximum since start.
+///
+/// The window's sum is a `u32`: the ticks of a window cannot take more cycles than the
+/// window lasts, and a window of one second is 168 M cycles at 168 MHz, far from 2^32 (25
+/// s); past that it saturates. A `u64` sum would bring a software 64-bit division
+/// (`__aeabi_uldivmod`, about 900 bytes) into the interrupt.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Cycles {
-    sum: u64,
+    sum: u32,
     count: u32,
     window_max: u32,
     max: u32,
@@ -40,16 +45,17 @@ impl Cycles {
     /// Adds one tick of `cycles`; every `window` ticks returns the window's summary and
     /// starts the next window.
     pub fn record(&mut self, cycles: u32, window: u32) -> Option<Summary> {
-        self.sum = self.sum.saturating_add(u64::from(cycles));
+        self.sum = self.sum.saturating_add(cycles);
         self.count = self.count.saturating_add(1);
         self.window_max = self.window_max.max(cycles);
         self.max = self.max.max(cycles);
         if self.count < window.max(1) {
             return None;
         }
-        let mean = self.sum / u64::from(self.count);
+        // `count` is at least 1 here (checked against `window.max(1)` above).
+        let mean = self.sum / self.count.max(1);
         let summary = Summary {
-            mean: u32::try_from(mean).unwrap_or(u32::MAX),
+            mean,
             window_max: self.window_max,
             max: self.max,
             ticks: self.count,
@@ -201,6 +207,15 @@ mod tests {
         let s = c.record(30, 3).unwrap();
         // The window maximum restarts, the overall one does not.
         assert_eq!((s.mean, s.window_max, s.max), (20, 30, 300));
+    }
+
+    #[test]
+    fn a_sum_past_the_counter_saturates_instead_of_wrapping() {
+        let mut c = Cycles::new();
+        assert_eq!(c.record(u32::MAX - 1, 2), None);
+        let s = c.record(10, 2).unwrap();
+        // Wrapped, the sum would be 8 and the mean 4.
+        assert_eq!((s.mean, s.max), (u32::MAX / 2, u32::MAX - 1));
     }
 
     #[test]

@@ -57,13 +57,14 @@ const TICK_GOAL: u32 = 300;
 /// Budget for one whole tick \[instructions\]: the run fails above it.
 ///
 /// The tick does not meet [`TICK_GOAL`], and this budget does not pretend it does: it
-/// sits about 5 % above the worst tick measured (1320, the practical law on the first
-/// tick of a shaped move, which plans the trajectory; the back-EMF in the electrical
-/// residual and the force-following disturbance added 81 to the 1239 before them), so
-/// that any regression fails the run. The run prints the measured figures per case and per
-/// stage; the goal is out of reach of a single-rate tick: sense, limits, law and bridge
-/// alone take more than 300.
-const TICK_BUDGET: u32 = 1390;
+/// sits about 5 % above the worst tick measured (1620, the practical law on the first
+/// tick of a shaped move, which plans the trajectory), so that any regression fails the
+/// run. The count is of the code the board runs: the firmware profile, built for size so
+/// that the image with the bench link and the parameter store fits its 64 KiB (the same
+/// tick built for speed took 1385 at most, median 1076 against 1216 now). The run prints
+/// the measured figures per case and per stage; the goal is out of reach of a
+/// single-rate tick: sense, limits, law and bridge alone take more than 300.
+const TICK_BUDGET: u32 = 1700;
 
 #[inline(never)]
 fn whole(cfg: &Config, st: &mut State, b: &mut Bridge, frame: &Frame, setpoint_m: f32) -> Status {

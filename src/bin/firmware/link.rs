@@ -100,7 +100,8 @@ impl Link {
                 .write(|w| w.bits(DMA_CHSEL4 | DMA_MINC | DMA_CIRC | DMA_EN));
             let s = d.st(TX_STREAM);
             s.par().write(|w| w.bits(u.dr().as_ptr() as u32));
-            s.cr().write(|w| w.bits(DMA_CHSEL4 | DMA_MINC | DMA_DIR_M2P));
+            s.cr()
+                .write(|w| w.bits(DMA_CHSEL4 | DMA_MINC | DMA_DIR_M2P));
             u.cr1().write(|w| w.bits(CR1_UE | CR1_TE | CR1_RE));
         }
         Self { rx, tx, tail: 0 }

@@ -74,7 +74,7 @@ impl Config {
         // Folds from +-inf, never NaN: the one-comparison running extremes are exact.
         // Every gain is positive, so the least change takes the least voltage.
         let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
-        for (f, res) in corners {
+        for &(f, res) in &corners {
             d_min = math::running_min(d_min, f * (u - du - res * i0));
             d_max = math::running_max(d_max, f * (u + du - res * i0));
         }
@@ -138,7 +138,7 @@ impl Config {
         let [pp, pq, qq, pe, qe] = st.fit;
         st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for (c, &(f, res)) in st.bank.iter_mut().zip(corners) {
+        for (c, &(f, res)) in st.bank.iter_mut().zip(corners.iter()) {
             *c += f * (u - res * *c);
             lo = math::running_min(lo, *c);
             hi = math::running_max(hi, *c);

@@ -9,15 +9,15 @@ use cortex_m::peripheral::{NVIC, SCB};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
 use ema::device::{
-    Action, Controller, Dispatcher, Inputs, Install, IsrEnds, MainEnds, Queues,
-    ANSWER_SLOTS, CAPTURE_CAPACITY, ORDER_SLOTS, SAMPLE_SLOTS,
+    Action, Controller, Dispatcher, Inputs, Install, IsrEnds, MainEnds, Queues, ANSWER_SLOTS,
+    CAPTURE_CAPACITY, ORDER_SLOTS, SAMPLE_SLOTS,
 };
 use ema::guard::{self, End, Start};
 use ema::params::{Board, Params};
 use ema::protocol::{Sample, Source};
-use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use ema::store::{self, Store};
 use ema::supervisor::Fault;
+use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 use stm32f4xx_hal::gpio::{Alternate, Pin};
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt};
@@ -137,7 +137,7 @@ fn record(cause: Cause, detail: u8) {
 }
 
 /// A parameter set to save at the next start, before the watchdogs run (a save erases a
-/// 128 KiB sector: seconds, far beyond the independent watchdog's 2 ms): a marker, the
+/// 16 KiB sector: about 250 ms, far beyond the independent watchdog's 2 ms): a marker, the
 /// record's length and the record as the store encodes it (its own CRC covers it), in RAM
 /// that start-up leaves as it is.
 #[repr(C)]
@@ -374,7 +374,7 @@ fn start() -> Result<MainLoop, StartError> {
     log_last_stop(flags, last, after_reset);
 
     // The parameters, before the watchdogs: a save (and a repair of a store a power cut
-    // damaged) erases 128 KiB sectors, which takes seconds. The bridge coasts meanwhile
+    // damaged) erases 16 KiB sectors, 250 to 500 ms each. The bridge coasts meanwhile
     // (the board's pull-downs; TIM1 is not started yet). The set is built here for the
     // nominal current zero and again below for the measured one.
     let defaults = Params::new(board::ACTUATOR);
@@ -430,6 +430,7 @@ fn start() -> Result<MainLoop, StartError> {
     let _position = gpioc.pc0.into_analog();
     let _current = gpioc.pc1.into_analog();
     let _vbus = gpioc.pc2.into_analog();
+    let _analog_setpoint = gpioc.pc3.into_analog();
     hw::start_adc(dp.ADC1, &dp.ADC_COMMON, &mut rcc);
 
     // Current-sensor zero, bridge coasting since reset.
@@ -448,7 +449,10 @@ fn start() -> Result<MainLoop, StartError> {
         rate_hz,
         current_zero_code: plausible.then_some(zero),
     };
-    let (control, analog) = boot.params.build(&board_now).map_err(StartError::Settings)?;
+    let (control, analog) = boot
+        .params
+        .build(&board_now)
+        .map_err(StartError::Settings)?;
     boot.install = Install { control, analog };
     defmt::info!(
         "law {=str}, rate {=f32} Hz; disarmed: the bench link arms and moves ({=u32} baud on USART2)",
@@ -541,7 +545,7 @@ fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::protocol::StoreEr
 
 /// The chip's flash as the parameter store sees it: writable at start (a pending save, a
 /// repair), then read-only for the main loop while the control interrupt runs (an erase
-/// stalls the bus for seconds; a load that would need a repair fails instead). One type
+/// stalls the bus for hundreds of milliseconds; a load that would need a repair fails instead). One type
 /// for both, so the store's code is in the image once.
 struct ChipFlash {
     flash: LockedFlash,
@@ -567,8 +571,8 @@ impl ReadNorFlash for ChipFlash {
 
 impl NorFlash for ChipFlash {
     const WRITE_SIZE: usize = 1;
-    /// Sectors 10 and 11 (`board::STORE_RANGE`) are 128 KiB each.
-    const ERASE_SIZE: usize = 128 * 1024;
+    /// Sectors 1 and 2 (`board::STORE_RANGE`).
+    const ERASE_SIZE: usize = board::STORE_SECTOR;
 
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
         if !self.writable {
@@ -624,7 +628,7 @@ fn measure_current_zero(watchdog: &mut IndependentWatchdog) -> Result<(f32, u16)
 fn ADC() {
     let start = hw::cycles();
     let hardware_trip = hw::begin_period();
-    let frame = hw::take_frame();
+    let (frame, analog) = hw::take_frame();
     // SAFETY: `ready` is set only after start-up has written `control`, and start-up never
     // touches CONTROL again; this handler does not re-enter itself, and nothing else uses
     // CONTROL.
@@ -636,9 +640,7 @@ fn ADC() {
     let c = unsafe { slot.control.assume_init_mut() };
     let inputs = Inputs {
         frame,
-        // The analog set-point input is not converted on this board yet (see the module
-        // documentation of the firmware).
-        analog: 0,
+        analog,
         start: Start {
             now: start,
             hardware_trip,
@@ -662,10 +664,12 @@ fn ADC() {
         c.ends = Some(ends);
         return;
     }
-    let ticked = c.controller.tick(&mut c.bridge, &inputs, &mut ends, || End {
-        next_due: NVIC::is_pending(Interrupt::ADC) || hw::conversion_pending(),
-        boundary_passed: hw::period_boundary_passed(),
-    });
+    let ticked = c
+        .controller
+        .tick(&mut c.bridge, &inputs, &mut ends, || End {
+            next_due: NVIC::is_pending(Interrupt::ADC) || hw::conversion_pending(),
+            boundary_passed: hw::period_boundary_passed(),
+        });
     c.ends = Some(ends);
     if ticked.restore_outputs {
         // The tick consumed the flag it read: clear it, or the next tick latches the

@@ -38,9 +38,9 @@
 //! TIM1 counter   0 /\ 4200 /\ 0          up/down, 168 MHz: 2 x 4200 counts = 50 us
 //! PWM (mode 1)  ‾‾|____|‾‾‾‾|____|‾‾     high while CNT < CCR1: pulses centred on CNT = 0
 //! compare 4          ^ CNT = 3632 counting up (PWM mode 2: OC4REF rises) -> TRGO
-//!  -> ADC1 injected: position, current, bus (3 x 1.9 us), the current's sampling
-//!     phase ending exactly at the top of the count, the sequence 3.4 us before to
-//!     2.5 us after it
+//!  -> ADC1 injected: position, current, bus, analog set point (4 x 1.9 us), the
+//!     current's sampling phase ending exactly at the top of the count, the sequence
+//!     3.4 us before to 4.4 us after it
 //!  -> JEOC interrupt -> tick -> CCR1..CCR3 (preloaded)
 //! update event            ^ top           RCR = 1: one update per period, at the top:
 //!                                         duty, direction and enable change together
@@ -119,18 +119,24 @@ pub const CURRENT_CHANNEL: u8 = 11;
 pub const POSITION_CHANNEL: u8 = 10;
 /// ADC channel of the bus-voltage divider.
 pub const VBUS_CHANNEL: u8 = 12;
+/// ADC channel of the analog set-point input (PC3, ADC123_IN13): its input stage (divider
+/// for 0-10 V, shunt for 4-20 mA) is the board's, its scaling `ema::analog`'s.
+pub const ANALOG_CHANNEL: u8 = 13;
 /// The injected sequence, in conversion order: ADC channel and what it measures; results
-/// land in JDR1, JDR2, JDR3. The one table both the set-up ([`INJECTED_SEQUENCE`],
-/// [`injected_sequence`]) and the readout ([`frame`]) use. The current is converted in the
-/// middle, so that the sequence sits around the sampling instant of the current
-/// ([`ADC_TRIGGER_COMPARE`]).
-pub const INJECTED: [(u8, Signal); 3] = [
+/// land in JDR1 to JDR4. The one table both the set-up ([`INJECTED_SEQUENCE`],
+/// [`injected_sequence`]) and the readout ([`frame`]) use. The current is converted
+/// second, so that the control's three sit around the sampling instant of the current
+/// ([`ADC_TRIGGER_COMPARE`]); the analog set point, filtered and least sensitive to a
+/// switching edge, last. It is converted whether or not it is used: the sequence, and so
+/// the tick's timing, is the same for every set-point source.
+pub const INJECTED: [(u8, Signal); 4] = [
     (POSITION_CHANNEL, Signal::Position),
     (CURRENT_CHANNEL, Signal::Current),
     (VBUS_CHANNEL, Signal::Vbus),
+    (ANALOG_CHANNEL, Signal::Setpoint),
 ];
 /// The channels of [`INJECTED`], in conversion order.
-pub const INJECTED_SEQUENCE: [u8; 3] = [INJECTED[0].0, INJECTED[1].0, INJECTED[2].0];
+pub const INJECTED_SEQUENCE: [u8; 4] = [INJECTED[0].0, INJECTED[1].0, INJECTED[2].0, INJECTED[3].0];
 /// What an injected conversion measures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Signal {
@@ -140,6 +146,8 @@ pub enum Signal {
     Current,
     /// Bus-voltage divider.
     Vbus,
+    /// The analog set-point input.
+    Setpoint,
 }
 
 /// Where `signal` sits in [`INJECTED`] (the table's length if it is absent).
@@ -155,22 +163,28 @@ pub const fn slot(signal: Signal) -> usize {
     INJECTED.len()
 }
 
-/// The frame of one sequence from its results `[JDR1, JDR2, JDR3]`, through [`INJECTED`].
+/// The control's frame and the analog set-point code of one sequence, from its results
+/// `[JDR1, JDR2, JDR3, JDR4]`, through [`INJECTED`].
 #[inline(always)]
 #[must_use]
-pub fn frame(results: [u16; 3]) -> Frame {
+pub fn frame(results: [u16; 4]) -> (Frame, u16) {
     let mut f = Frame::default();
-    let [(_, a), (_, b), (_, c)] = INJECTED;
-    let [ra, rb, rc] = results;
-    for (signal, code) in [(a, ra), (b, rb), (c, rc)] {
+    let mut analog = 0;
+    let [(_, a), (_, b), (_, c), (_, d)] = INJECTED;
+    let [ra, rb, rc, rd] = results;
+    for (signal, code) in [(a, ra), (b, rb), (c, rc), (d, rd)] {
         match signal {
             Signal::Position => f.position = code,
             Signal::Current => f.current = code,
             Signal::Vbus => f.vbus = code,
+            Signal::Setpoint => analog = code,
         }
     }
-    f
+    (f, analog)
 }
+
+/// Conversions in the sequence.
+pub const CONVERSIONS: u32 = INJECTED.len() as u32;
 
 /// Slot of the current in the sequence.
 pub const CURRENT_SLOT: u32 = slot(Signal::Current) as u32;
@@ -191,7 +205,7 @@ pub const ADC_TRIGGER_LEAD_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
 pub const ADC_TRIGGER_COMPARE: u32 = PWM_ARR - ADC_TRIGGER_LEAD_COUNTS;
 /// TIM1 counts from the top of the count to the end of the sequence (the interrupt).
 pub const ADC_END_AFTER_TOP_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
-    + 3 * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES))
+    + CONVERSIONS * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES))
     * TIM1_COUNTS_PER_ADC_CYCLE
     - ADC_TRIGGER_LEAD_COUNTS;
 /// Highest duty \[per mille\] whose off-time holds the whole sequence, trigger to last
@@ -206,7 +220,7 @@ pub const SEQUENCE_IN_OFF_TIME_MAX_PERMILLE: u32 = 1000
 
 /// Time from the trigger to the end of the sequence \[ns\].
 pub const ADC_SEQUENCE_NS: u32 =
-    3 * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * 1_000 / (ADC_CLK_HZ / 1_000_000);
+    CONVERSIONS * (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * 1_000 / (ADC_CLK_HZ / 1_000_000);
 
 /// Port of the bridge PWM pin (TIM1_CH1 in alternate function 1).
 pub const PWM_PORT: char = 'A';
@@ -228,9 +242,15 @@ pub const EN_PIN: u8 = 9;
 pub const WATCHDOG_TIMEOUT_MS: u32 = 2;
 
 /// The parameter store's flash range, as offsets from the flash's start (0x0800_0000):
-/// sectors 10 and 11 (128 KiB each), which `memory.x` keeps out of the image's FLASH
-/// region (its STORE region; the two must agree).
-pub const STORE_RANGE: core::ops::Range<u32> = 0x000C_0000..0x0010_0000;
+/// sectors 1 and 2 (16 KiB each), which `memory.x` keeps out of the image (the code
+/// starts after them; its link-time check fails if the two disagree).
+pub const STORE_RANGE: core::ops::Range<u32> = 0x0000_4000..0x0000_C000;
+/// Size of the store's sectors \[bytes\].
+pub const STORE_SECTOR: usize = 16 * 1024;
+const _: () = assert!(
+    (STORE_RANGE.end - STORE_RANGE.start) as usize == 2 * STORE_SECTOR
+        && (STORE_RANGE.start as usize).is_multiple_of(STORE_SECTOR)
+);
 /// Port of the bench link's two pins.
 pub const LINK_PORT: char = 'A';
 /// The bench link's transmit pin (USART2_TX in alternate function 7).
@@ -298,10 +318,18 @@ const _: () = {
     assert!(ADC_SEQUENCE_NS < 10_000);
     assert!(SYSCLK_HZ.is_multiple_of(HSE_HZ));
     // The sequence: every signal in it exactly once, placed around the top of the count.
-    assert!(slot(Signal::Position) < 3 && slot(Signal::Current) < 3 && slot(Signal::Vbus) < 3);
+    assert!(
+        slot(Signal::Position) < 4
+            && slot(Signal::Current) < 4
+            && slot(Signal::Vbus) < 4
+            && slot(Signal::Setpoint) < 4
+    );
     assert!(slot(Signal::Position) != slot(Signal::Current));
     assert!(slot(Signal::Position) != slot(Signal::Vbus));
     assert!(slot(Signal::Current) != slot(Signal::Vbus));
+    assert!(slot(Signal::Setpoint) != slot(Signal::Position));
+    assert!(slot(Signal::Setpoint) != slot(Signal::Current));
+    assert!(slot(Signal::Setpoint) != slot(Signal::Vbus));
     assert!(TIM1_CLK_HZ.is_multiple_of(ADC_CLK_HZ));
     assert!(ADC_TRIGGER_LEAD_COUNTS < PWM_ARR / 2);
     // The interrupt comes after the top: the tick's writes all wait for the next one.
@@ -321,16 +349,18 @@ const _: () = {
     );
 };
 
-/// ADC_JSQR for an injected sequence of three channels. With JL = 2 (three conversions)
-/// the ADC converts JSQ2, JSQ3, JSQ4 in that order (RM0090 section 13.13.12: "if JL < 3
-/// the sequence starts at JSQ(4 - JL)"), and the n-th conversion goes to JDRn.
+/// ADC_JSQR for an injected sequence of four channels. With JL = 3 (four conversions)
+/// the ADC converts JSQ1, JSQ2, JSQ3, JSQ4 in that order (RM0090 section 13.13.12: "if
+/// JL < 3 the sequence starts at JSQ(4 - JL)", here JSQ1), and the n-th conversion goes
+/// to JDRn.
 #[must_use]
-pub const fn injected_sequence(channels: [u8; 3]) -> u32 {
-    let jl = 2;
+pub const fn injected_sequence(channels: [u8; 4]) -> u32 {
+    let jl = 3;
     (jl << 20)
-        | ((channels[0] as u32) << 5)
-        | ((channels[1] as u32) << 10)
-        | ((channels[2] as u32) << 15)
+        | (channels[0] as u32)
+        | ((channels[1] as u32) << 5)
+        | ((channels[2] as u32) << 10)
+        | ((channels[3] as u32) << 15)
 }
 
 /// Whether a measured current zero can be trusted.
@@ -371,36 +401,43 @@ mod tests {
     use super::*;
 
     #[test]
-    fn injected_sequence_matches_the_reference_manual_example() {
-        // RM0090: JSQR = 10 00011 00011 00111 00010 converts 7, 3, 3 (JSQ1 = 2 unused).
-        let rm = 0b10_00011_00011_00111_00010;
-        assert_eq!(injected_sequence([7, 3, 3]) | 0b00010, rm);
+    fn injected_sequence_matches_the_reference_manual_layout() {
+        // RM0090 13.13.12: JL in bits 21:20, JSQ4 in 19:15, JSQ3 in 14:10, JSQ2 in 9:5,
+        // JSQ1 in 4:0; JL = 3 converts JSQ1 to JSQ4. Its example, JSQR = 10 00011 00011
+        // 00111 00010 (JL = 2: 7, 3, 3), read with JL = 3, converts 2, 7, 3, 3.
+        let rm = 0b10_00011_00011_00111_00010 | (1 << 20);
+        assert_eq!(injected_sequence([2, 7, 3, 3]), rm);
         let ours = injected_sequence(INJECTED_SEQUENCE);
-        assert_eq!((ours >> 20) & 3, 2);
-        assert_eq!((ours >> 5) & 31, u32::from(POSITION_CHANNEL));
-        assert_eq!((ours >> 10) & 31, u32::from(CURRENT_CHANNEL));
-        assert_eq!((ours >> 15) & 31, u32::from(VBUS_CHANNEL));
+        assert_eq!((ours >> 20) & 3, 3);
+        assert_eq!(ours & 31, u32::from(POSITION_CHANNEL));
+        assert_eq!((ours >> 5) & 31, u32::from(CURRENT_CHANNEL));
+        assert_eq!((ours >> 10) & 31, u32::from(VBUS_CHANNEL));
+        assert_eq!((ours >> 15) & 31, u32::from(ANALOG_CHANNEL));
     }
 
     #[test]
     fn the_readout_follows_the_same_table_as_the_set_up() {
         // JDRn holds the n-th conversion: each result lands in the field of the signal
         // the table names for that slot.
-        let f = frame([100, 2048, 1354]);
-        assert_eq!(INJECTED_SEQUENCE, [10, 11, 12]);
-        assert_eq!((f.position, f.current, f.vbus), (100, 2048, 1354));
+        let (f, analog) = frame([100, 2048, 1354, 3000]);
+        assert_eq!(INJECTED_SEQUENCE, [10, 11, 12, 13]);
+        assert_eq!(
+            (f.position, f.current, f.vbus, analog),
+            (100, 2048, 1354, 3000)
+        );
         for (k, (channel, signal)) in INJECTED.iter().enumerate() {
-            let mut results = [0; 3];
+            let mut results = [0; 4];
             results[k] = 7;
-            let f = frame(results);
+            let (f, analog) = frame(results);
             let got = match signal {
                 Signal::Position => f.position,
                 Signal::Current => f.current,
                 Signal::Vbus => f.vbus,
+                Signal::Setpoint => analog,
             };
             assert_eq!(got, 7);
             assert_eq!(
-                (injected_sequence(INJECTED_SEQUENCE) >> (5 + 5 * k)) & 31,
+                (injected_sequence(INJECTED_SEQUENCE) >> (5 * k)) & 31,
                 u32::from(*channel)
             );
         }
@@ -413,10 +450,11 @@ mod tests {
         assert_eq!(CURRENT_SLOT, 1);
         assert_eq!(ADC_TRIGGER_LEAD_COUNTS, 568);
         assert_eq!(ADC_TRIGGER_COMPARE, 3632);
-        // 3.4 us before the top to 2.5 us after it: every conversion in the off-time up
-        // to a duty of 86.4 % (a trigger at the update event reaches 76.5 %).
-        assert_eq!(ADC_END_AFTER_TOP_COUNTS, 416);
-        assert_eq!(SEQUENCE_IN_OFF_TIME_MAX_PERMILLE, 864);
+        // 3.4 us before the top to 4.4 us after it: every conversion in the off-time up
+        // to a duty of 82.4 % (the control's three up to 86.4 %, as without the analog
+        // input; a trigger at the update event would reach 68.9 %).
+        assert_eq!(ADC_END_AFTER_TOP_COUNTS, 736);
+        assert_eq!(SEQUENCE_IN_OFF_TIME_MAX_PERMILLE, 824);
         // The position and bus samples are 1.9 us either side of the current's.
         let step = (ADC_SAMPLE_CYCLES + ADC_CONVERSION_CYCLES) * TIM1_COUNTS_PER_ADC_CYCLE;
         assert_eq!(step, 320);
@@ -440,8 +478,8 @@ mod tests {
     #[test]
     fn timing_constants() {
         assert_eq!(ADC_CLK_HZ, 21_000_000);
-        // 3 x 40 ADC cycles at 21 MHz.
-        assert_eq!(ADC_SEQUENCE_NS, 5_714);
+        // 4 x 40 ADC cycles at 21 MHz.
+        assert_eq!(ADC_SEQUENCE_NS, 7_619);
         assert_eq!(OVERRUN_GAP_CYCLES, 12_600);
     }
 

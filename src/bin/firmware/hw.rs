@@ -378,7 +378,8 @@ pub fn start_adc(adc1: pac::ADC1, common: &pac::ADC_COMMON, rcc: &mut Rcc) {
     adc1.smpr1().write(|w| {
         w.smp10().cycles28();
         w.smp11().cycles28();
-        w.smp12().cycles28()
+        w.smp12().cycles28();
+        w.smp13().cycles28()
     });
     // SAFETY: JSQR takes any 22-bit value; this one is built by board::injected_sequence
     // from channel numbers below 19 (checked in its unit test).
@@ -398,16 +399,17 @@ fn adc1() -> &'static pac::adc1::RegisterBlock {
     unsafe { &*pac::ADC1::ptr() }
 }
 
-/// Clears the end-of-injected-conversion flag and returns the three codes, each in the
-/// field board::INJECTED names for its slot.
+/// Clears the end-of-injected-conversion flag and returns the control's frame and the
+/// analog set-point code, each from the slot board::INJECTED names.
 #[inline(always)]
-pub fn take_frame() -> Frame {
+pub fn take_frame() -> (Frame, u16) {
     let adc = adc1();
     adc.sr().write(|w| w.jeoc().clear());
     board::frame([
         adc.jdr1().read().jdata().bits(),
         adc.jdr2().read().jdata().bits(),
         adc.jdr3().read().jdata().bits(),
+        adc.jdr4().read().jdata().bits(),
     ])
 }
 
@@ -429,7 +431,7 @@ pub fn wait_conversion(timeout: u32) -> Option<(u32, u32, Frame)> {
     let tim = tim1();
     let cnt = tim.cnt().read().bits();
     let cr1 = tim.cr1().read().bits();
-    Some((cr1, cnt, take_frame()))
+    Some((cr1, cnt, take_frame().0))
 }
 
 /// Both watchdogs; the tick feeds them when the guard says it ran on time.

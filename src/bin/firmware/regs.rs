@@ -266,7 +266,7 @@ mod tests {
         // Counting down just after an update: the update was at the top.
         assert!(update_at_top(CR1 | CR1_CEN | CR1_DIR));
         assert!(!update_at_top(CR1 | CR1_CEN));
-        // The sequence ends 416 counts after the top: seen there, or up to 525 later.
+        // The sequence ends 736 counts after the top: seen there, or up to 525 later.
         let end = board::ADC_END_AFTER_TOP_COUNTS;
         let down = CR1 | CR1_CEN | CR1_DIR;
         assert!(conversions_placed(down, top - end));
@@ -275,9 +275,9 @@ mod tests {
         assert!(conversions_placed(down, top - end + 16));
         assert!(!conversions_placed(down, top - end + 17));
         // Triggered by the update at the top (TRGO on the update event instead of compare
-        // 4): the conversions end 984 counts after the top (3 ADC cycles of latency and
-        // 3 x 40 to convert, 8 counts each), outside the window.
-        assert!(!conversions_placed(down, top - 984));
+        // 4): the conversions end 1304 counts after the top (3 ADC cycles of latency and
+        // 4 x 40 to convert, 8 counts each), outside the window.
+        assert!(!conversions_placed(down, top - 1304));
         // Counting up (the conversions around the bottom): refused.
         assert!(!conversions_placed(CR1 | CR1_CEN, top - end));
         assert!(!conversions_placed(down, top + 1));

@@ -4,12 +4,10 @@
 //! flash, the reset) stays in the firmware; `hil-sim` gives the same two halves a
 //! simulated plant, a pseudo-terminal and a simulated flash.
 //!
-//! **Where it runs today.** `hil-sim`'s virtual board runs it (the host tool is tested
-//! against that), and `tests/qemu_device.rs` runs a scripted session of it on the
-//! Cortex-M4F. The firmware binary does not yet: its interrupt still runs
-//! `Config::tick` through the guard on a built-in set point, and the serial link, the
-//! store over the chip's flash and the analog input's conversion are still to be wired
-//! in there.
+//! **Where it runs.** The firmware's control interrupt runs [`Controller::tick`] and its
+//! main loop the [`Dispatcher`], over USART2 and the chip's flash; `hil-sim`'s virtual
+//! board runs the same two halves (the host tool is tested against it), and
+//! `tests/qemu_device.rs` runs a scripted session of it on the Cortex-M4F.
 //!
 //! ## Two halves and three queues
 //!
@@ -1531,7 +1529,8 @@ mod tests {
     fn to_front_moves_as_copy_within() {
         for len in 0..40usize {
             for n in 0..=len {
-                let start: [u8; 40] = core::array::from_fn(|k| k as u8 + 1);
+                let start: [u8; 40] =
+                    core::array::from_fn(|k| u8::try_from(k + 1).unwrap_or(u8::MAX));
                 let (mut got, mut want) = (start, start);
                 to_front(&mut got[..len], n);
                 want[..len].copy_within(n.., 0);

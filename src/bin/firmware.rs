@@ -1,12 +1,18 @@
-//! STM32F405 firmware: the control core in a fixed-rate interrupt.
+//! STM32F405 firmware: the control core in a fixed-rate interrupt, the bench application
+//! around it.
 //!
 //! TIM1 runs the bridge PWM at 20 kHz, center-aligned, and drives all three bridge lines
 //! (PWM, enable, direction) as timer outputs; once per period its compare channel 4
-//! triggers ADC1, which converts position, coil current and bus voltage around the top of
-//! the count; the end of that sequence interrupts, and the interrupt runs
-//! `ema::control::Config::tick` on the codes through `ema::guard` and writes the next
-//! duty, direction and enable, which the timer applies together at the next period
-//! boundary. Pins, clocks and every other hardware fact are in [`board`]; the register
+//! triggers ADC1, which converts position, coil current, bus voltage and the analog set
+//! point around the top of the count; the end of that sequence interrupts, and the
+//! interrupt runs the application's `ema::device::Controller::tick` (the operating state,
+//! one order from the main loop, `ema::control::Config::tick` through `ema::guard`,
+//! telemetry and capture) and writes the next duty, direction and enable, which the timer
+//! applies together at the next period boundary. The board boots disarmed, with the
+//! bridge coasting. The main loop serves the bench link (USART2 by DMA, `link`) with
+//! `ema::device::Dispatcher`, and the parameters live in flash sectors 1 and 2 through
+//! `ema::store`, loaded at start (a damaged or incompatible set falls back to the
+//! built-in defaults and says so) and saved at the next start, before the watchdogs run. Pins, clocks and every other hardware fact are in [`board`]; the register
 //! values in [`regs`]; register-level set-up in `hw`; start-up, the interrupts, the status
 //! line and the panic and fault handlers in `app`; what survives a reset in [`reset`].
 //!

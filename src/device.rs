@@ -451,13 +451,15 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         self.ticks = self.ticks.wrapping_add(1);
         self.break_active = inputs.break_active;
         let mut restore_outputs = false;
-        if let Some(ticket) = ends.orders.dequeue() {
-            let outcome = self.apply(ticket.order, bridge, &mut restore_outputs);
+        if let Some(ticket) = ends.orders.peek() {
+            let id = ticket.id;
+            let outcome = self.apply(&ticket.order, bridge, &mut restore_outputs);
+            // Read where it lies, then released: an order is as large as its largest kind
+            // (an install carries a whole configuration: 540 bytes), and a copy out of
+            // the queue cost every order, an arm as much as an install.
+            let _ = ends.orders.dequeue();
             // The main loop has at most one order in flight: the answer fits.
-            let _ = ends.answers.enqueue(Answer {
-                id: ticket.id,
-                outcome,
-            });
+            let _ = ends.answers.enqueue(Answer { id, outcome });
         }
 
         if self.analog.source() != SetpointSource::Link {
@@ -652,7 +654,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
 
     fn apply<P: SetDutyCycle, O: OutputPin>(
         &mut self,
-        order: Order,
+        order: &Order,
         bridge: &mut HBridge<P, O>,
         restore_outputs: &mut bool,
     ) -> Outcome {
@@ -669,7 +671,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             self.commissioned = Commissioned::Aborted(commission::Abort::Stopped);
             self.mode = Mode::Disarmed;
         }
-        match order {
+        match *order {
             Order::Arm => {
                 if self.mode.armed() {
                     return done(Ok(()));
@@ -799,7 +801,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             } else {
                 Ok(())
             }),
-            Order::Install(install) => {
+            Order::Install(ref install) => {
                 if self.mode.armed() {
                     return done(Err(Refusal::Armed));
                 }

@@ -55,6 +55,10 @@ pub const FORMAT: u16 = 1;
 pub const KEY: u8 = 1;
 /// Largest record \[bytes\].
 pub const MAX_RECORD: usize = 200;
+/// Bytes in each of the two flash sectors the board keeps its parameters in (the
+/// STM32F405's sectors 1 and 2, 16 KiB each: the firmware's `board::STORE_RANGE`); the
+/// virtual board's simulated flash has the same geometry.
+pub const SECTOR_BYTES: usize = 16 * 1024;
 /// Buffer the store works in: the record, its key, word alignment.
 const BUFFER: usize = MAX_RECORD + 16;
 

@@ -3,7 +3,7 @@
 //! ([`ema::device::boot`]) on the simulated flash, cut at each step in turn, then started
 //! again.
 //!
-//! Two geometries: the chip's (two 128 KiB sectors: a save appends a record), and small
+//! Two geometries: the chip's (two 16 KiB sectors: a save appends a record), and small
 //! pages that force the store to close a page, erase the other and carry the set over,
 //! with the cut save starting at every position in the page's cycle.
 

@@ -9,7 +9,7 @@
 //! |---|---|
 //! | TIM1 + ADC1 interrupt, 20 kHz | [`VirtualBoard::tick`]: sample the plant, tick, advance the plant one period |
 //! | UART with DMA | bytes in and out ([`VirtualBoard::input`], [`VirtualBoard::output`]); [`VirtualBoard::serve`] moves them over a pseudo-terminal |
-//! | flash sectors 10 and 11 | [`Flash`], which can lose its power at any write |
+//! | flash sectors 1 and 2 | [`Flash`], which can lose its power at any write |
 //! | a save restarts the chip, which writes the flash before it starts the control | [`VirtualBoard::restart`] with the set to save, the same [`device::boot`] |
 //! | the measured current-sensor zero | the nominal zero |
 //!
@@ -124,7 +124,7 @@ pub struct VirtualBoard {
     cut_saves: u32,
 }
 
-/// The store's flash range (two 128 KiB pages).
+/// The store's flash range (the chip's two sectors, [`PAGE`] bytes each).
 fn store_range() -> std::ops::Range<u32> {
     0..u32::try_from(PAGE * PAGES).unwrap_or(u32::MAX)
 }

@@ -1,8 +1,8 @@
 //! A simulated NOR flash with the STM32F405's geometry for the parameter store, that can
 //! lose its power at any single write or erase.
 //!
-//! The store's two pages are the chip's last two 128 KiB sectors (10 and 11, see the
-//! firmware's `board::STORE_RANGE`); byte writes, as the HAL programs them. A write can
+//! The store's two pages are the chip's two 16 KiB sectors the firmware keeps its
+//! parameters in ([`ema::store::SECTOR_BYTES`]); byte writes, as the HAL programs them. A write can
 //! only clear bits; an erase sets a whole page to `0xFF`.
 //!
 //! **Power cuts.** [`Flash::cut_after`] arms a cut: the flash counts every byte it
@@ -17,8 +17,8 @@ use embedded_storage::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 
-/// Bytes per erase page (an STM32F405 128 KiB sector).
-pub const PAGE: usize = 128 * 1024;
+/// Bytes per erase page (the STM32F405 sector the store uses).
+pub const PAGE: usize = ema::store::SECTOR_BYTES;
 /// Pages of the store.
 pub const PAGES: usize = 2;
 
@@ -51,7 +51,7 @@ pub struct Flash<const P: usize = PAGE> {
 }
 
 impl Default for Flash {
-    /// The chip's: two 128 KiB sectors.
+    /// The chip's: two sectors of [`PAGE`] bytes.
     fn default() -> Self {
         Self::new(PAGES)
     }

@@ -246,7 +246,7 @@ pub const WATCHDOG_TIMEOUT_MS: u32 = 2;
 /// starts after them; its link-time check fails if the two disagree).
 pub const STORE_RANGE: core::ops::Range<u32> = 0x0000_4000..0x0000_C000;
 /// Size of the store's sectors \[bytes\].
-pub const STORE_SECTOR: usize = 16 * 1024;
+pub const STORE_SECTOR: usize = ema::store::SECTOR_BYTES;
 const _: () = assert!(
     (STORE_RANGE.end - STORE_RANGE.start) as usize == 2 * STORE_SECTOR
         && (STORE_RANGE.start as usize).is_multiple_of(STORE_SECTOR)

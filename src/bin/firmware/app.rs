@@ -137,9 +137,9 @@ fn record(cause: Cause, detail: u8) {
 }
 
 /// A parameter set to save at the next start, before the watchdogs run (a save erases a
-/// 16 KiB sector: about 250 ms, far beyond the independent watchdog's 2 ms): a marker, the
-/// record's length and the record as the store encodes it (its own CRC covers it), in RAM
-/// that start-up leaves as it is.
+/// 16 KiB sector: 400 ms typical, 800 ms at most, far beyond the independent watchdog's
+/// 2 ms): a marker, the record's length and the record as the store encodes it (its own
+/// CRC covers it), in RAM that start-up leaves as it is.
 #[repr(C)]
 struct PendingSave {
     marker: u32,
@@ -374,9 +374,9 @@ fn start() -> Result<MainLoop, StartError> {
     log_last_stop(flags, last, after_reset);
 
     // The parameters, before the watchdogs: a save (and a repair of a store a power cut
-    // damaged) erases 16 KiB sectors, 250 to 500 ms each. The bridge coasts meanwhile
-    // (the board's pull-downs; TIM1 is not started yet). The set is built here for the
-    // nominal current zero and again below for the measured one.
+    // damaged) erases 16 KiB sectors, 400 ms each (800 ms at most). The bridge coasts
+    // meanwhile (the board's pull-downs; TIM1 is not started yet). The set is built here
+    // for the nominal current zero and again below for the measured one.
     let defaults = Params::new(board::ACTUATOR);
     let rate_hz = board::ACTUATOR.board.rate_hz;
     let save = take_save();
@@ -545,8 +545,8 @@ fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::protocol::StoreEr
 
 /// The chip's flash as the parameter store sees it: writable at start (a pending save, a
 /// repair), then read-only for the main loop while the control interrupt runs (an erase
-/// stalls the bus for hundreds of milliseconds; a load that would need a repair fails instead). One type
-/// for both, so the store's code is in the image once.
+/// stalls the bus for hundreds of milliseconds; a load that would need a repair fails
+/// instead). One type for both, so the store's code is in the image once.
 struct ChipFlash {
     flash: LockedFlash,
     writable: bool,

@@ -290,14 +290,61 @@ struct Meta {
     move_s: f32,
 }
 
-/// Cycle statistics of the ticks (the firmware measures them; zero elsewhere).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Cycles {
+/// Cycle statistics of the ticks (the firmware measures them; zero elsewhere): per window
+/// of ticks and since start.
+///
+/// The window's sum is a `u32`: the ticks of a window cannot take more cycles than the
+/// window lasts, and a window of one second is 168 M cycles at 168 MHz, far from 2^32 (25
+/// s); past that it saturates. A `u64` sum would bring a software 64-bit division
+/// (`__aeabi_uldivmod`, about 900 bytes) into the interrupt.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Cycles {
     sum: u32,
     count: u32,
-    window: u32,
+    window_max: u32,
+    /// Mean of the last whole window.
     mean: u32,
+    /// Largest since start.
     max: u32,
+}
+
+/// One window of cycle counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CycleSummary {
+    /// Mean cycles per tick over the window.
+    pub mean: u32,
+    /// Largest tick of the window \[cycles\].
+    pub window_max: u32,
+    /// Largest tick since start \[cycles\].
+    pub max: u32,
+    /// Ticks in the window.
+    pub ticks: u32,
+}
+
+impl Cycles {
+    /// Adds one tick of `cycles`; every `window` ticks returns the window's summary and
+    /// starts the next window.
+    pub fn record(&mut self, cycles: u32, window: u32) -> Option<CycleSummary> {
+        self.sum = self.sum.saturating_add(cycles);
+        self.count = self.count.saturating_add(1);
+        self.window_max = self.window_max.max(cycles);
+        self.max = self.max.max(cycles);
+        if self.count < window.max(1) {
+            return None;
+        }
+        // `count` is at least 1 here (checked against `window.max(1)` above).
+        self.mean = self.sum.checked_div(self.count).unwrap_or(0);
+        let summary = CycleSummary {
+            mean: self.mean,
+            window_max: self.window_max,
+            max: self.max,
+            ticks: self.count,
+        };
+        self.sum = 0;
+        self.count = 0;
+        self.window_max = 0;
+        Some(summary)
+    }
 }
 
 /// The interrupt's half. `C` is the capture buffer (`&'static mut [Sample; N]` in the
@@ -370,10 +417,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             capture_count: 0,
             capture_trigger: Trigger::Now,
             meta: Meta::default(),
-            cycles: Cycles {
-                window: 20_000,
-                ..Cycles::default()
-            },
+            cycles: Cycles::default(),
             identification: None,
             commissioned: Commissioned::Never,
             last_drive_v: 0.0,
@@ -420,20 +464,11 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         self.mode = Mode::Fault;
     }
 
-    /// Adds one tick's measured cycles; the mean is over windows of `window` ticks.
-    pub fn record_cycles(&mut self, cycles: u32, window: u32) {
-        let c = &mut self.cycles;
-        c.window = window;
-        c.sum = c.sum.saturating_add(cycles);
-        c.count = c.count.saturating_add(1);
-        if cycles > c.max {
-            c.max = cycles;
-        }
-        if c.count >= c.window {
-            c.mean = c.sum.checked_div(c.count).unwrap_or(0);
-            c.sum = 0;
-            c.count = 0;
-        }
+    /// Adds one tick's measured cycles ([`Cycles::record`]): the status reports the mean
+    /// of the last window of `window` ticks and the largest since start; every `window`
+    /// ticks, the window's summary.
+    pub fn record_cycles(&mut self, cycles: u32, window: u32) -> Option<CycleSummary> {
+        self.cycles.record(cycles, window)
     }
 
     /// One tick: takes at most one order, reads the analog input, runs the controller
@@ -1525,7 +1560,30 @@ fn refused(name: &str, e: Refused) -> Refusal<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::to_front;
+    use super::{to_front, Cycles};
+
+    #[test]
+    fn windows_give_mean_and_maxima() {
+        let mut c = Cycles::default();
+        assert_eq!(c.record(100, 3), None);
+        assert_eq!(c.record(300, 3), None);
+        let s = c.record(200, 3).unwrap();
+        assert_eq!((s.mean, s.window_max, s.max, s.ticks), (200, 300, 300, 3));
+        c.record(10, 3);
+        c.record(20, 3);
+        let s = c.record(30, 3).unwrap();
+        // The window maximum restarts, the overall one does not.
+        assert_eq!((s.mean, s.window_max, s.max), (20, 30, 300));
+    }
+
+    #[test]
+    fn a_sum_past_the_counter_saturates_instead_of_wrapping() {
+        let mut c = Cycles::default();
+        assert_eq!(c.record(u32::MAX - 1, 2), None);
+        let s = c.record(10, 2).unwrap();
+        // Wrapped, the sum would be 8 and the mean 4.
+        assert_eq!((s.mean, s.max), (u32::MAX / 2, u32::MAX - 1));
+    }
 
     #[test]
     fn to_front_moves_as_copy_within() {

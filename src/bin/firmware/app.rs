@@ -29,7 +29,7 @@ use crate::hw::{self, Bridge, Watchdogs};
 use crate::link::{self, Link};
 use crate::regs;
 use crate::reset::{self, Cause, Record};
-use crate::stats::{self, Cycles, Published, Snapshot};
+use crate::stats::{self, Published, Snapshot};
 
 /// NVIC priority of the window watchdog's early wake-up: the highest, so that it preempts
 /// a control interrupt that never ends (4 priority bits, in the high nibble).
@@ -52,7 +52,6 @@ struct Control {
     watchdogs: Watchdogs,
     /// Taken out for the tick (see `ADC`), always put back.
     ends: Option<IsrEnds<'static>>,
-    cycles: Cycles,
 }
 
 /// Everything the main loop owns: the dispatcher, its ends of the queues, the link and
@@ -497,7 +496,6 @@ fn start() -> Result<MainLoop, StartError> {
         bridge,
         watchdogs: Watchdogs::start(independent),
         ends: Some(isr_ends),
-        cycles: Cycles::new(),
     };
     // SAFETY: the control interrupt is masked (never unmasked yet) and nothing else touches
     // CONTROL; `ready` is set after the write, and the fences keep both before the
@@ -682,10 +680,11 @@ fn ADC() {
     }
     let end = hw::cycles();
     let cycles = end.wrapping_sub(start);
-    c.controller
-        .record_cycles(cycles, board::STATUS_PERIOD_TICKS);
-
-    if let Some(cycles) = c.cycles.record(cycles, board::STATUS_PERIOD_TICKS) {
+    // One accumulator for the link's status and the status line.
+    if let Some(cycles) = c
+        .controller
+        .record_cycles(cycles, board::STATUS_PERIOD_TICKS)
+    {
         let status = ticked.status;
         let state = c.controller.state();
         STATUS.publish(&Snapshot {

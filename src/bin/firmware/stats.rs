@@ -1,71 +1,11 @@
-//! Cycle statistics of the tick and the status the interrupt publishes for the main loop
-//! (overruns are the guard's, `ema::guard`). Plain logic, tested on the host; the interrupt owns [`Cycles`], the
-//! main loop only reads [`Published`].
+//! The status the interrupt publishes for the main loop's status line (the cycle
+//! statistics are the controller's, `ema::device::Cycles`; overruns the guard's,
+//! `ema::guard`). Plain logic, tested on the host; the main loop only reads
+//! [`Published`].
 
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};
 
-/// Cycle counts of the ticks of the current window, and the maximum since start.
-///
-/// The window's sum is a `u32`: the ticks of a window cannot take more cycles than the
-/// window lasts, and a window of one second is 168 M cycles at 168 MHz, far from 2^32 (25
-/// s); past that it saturates. A `u64` sum would bring a software 64-bit division
-/// (`__aeabi_uldivmod`, about 900 bytes) into the interrupt.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Cycles {
-    sum: u32,
-    count: u32,
-    window_max: u32,
-    max: u32,
-}
-
-/// One window of cycle counts.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Summary {
-    /// Mean cycles per tick over the window.
-    pub mean: u32,
-    /// Largest tick of the window \[cycles\].
-    pub window_max: u32,
-    /// Largest tick since start \[cycles\].
-    pub max: u32,
-    /// Ticks in the window.
-    pub ticks: u32,
-}
-
-impl Cycles {
-    /// No ticks yet.
-    pub const fn new() -> Self {
-        Self {
-            sum: 0,
-            count: 0,
-            window_max: 0,
-            max: 0,
-        }
-    }
-
-    /// Adds one tick of `cycles`; every `window` ticks returns the window's summary and
-    /// starts the next window.
-    pub fn record(&mut self, cycles: u32, window: u32) -> Option<Summary> {
-        self.sum = self.sum.saturating_add(cycles);
-        self.count = self.count.saturating_add(1);
-        self.window_max = self.window_max.max(cycles);
-        self.max = self.max.max(cycles);
-        if self.count < window.max(1) {
-            return None;
-        }
-        // `count` is at least 1 here (checked against `window.max(1)` above).
-        let mean = self.sum / self.count.max(1);
-        let summary = Summary {
-            mean,
-            window_max: self.window_max,
-            max: self.max,
-            ticks: self.count,
-        };
-        self.sum = 0;
-        self.count = 0;
-        self.window_max = 0;
-        Some(summary)
-    }
-}
+use ema::device::CycleSummary;
 
 /// What the status line shows.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -73,7 +13,7 @@ pub struct Snapshot {
     /// Ticks since the controller started.
     pub ticks: u32,
     /// Cycle statistics of the last window.
-    pub cycles: Summary,
+    pub cycles: CycleSummary,
     /// Overruns since start.
     pub overruns: u32,
     /// Latched fault code (0: none).
@@ -155,7 +95,7 @@ impl Published {
             let fault_mode = self.fault_mode.load(Ordering::Relaxed);
             let s = Snapshot {
                 ticks: self.ticks.load(Ordering::Relaxed),
-                cycles: Summary {
+                cycles: CycleSummary {
                     mean: self.mean.load(Ordering::Relaxed),
                     window_max: self.window_max.load(Ordering::Relaxed),
                     max: self.max.load(Ordering::Relaxed),
@@ -196,36 +136,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn windows_give_mean_and_maxima() {
-        let mut c = Cycles::new();
-        assert_eq!(c.record(100, 3), None);
-        assert_eq!(c.record(300, 3), None);
-        let s = c.record(200, 3).unwrap();
-        assert_eq!((s.mean, s.window_max, s.max, s.ticks), (200, 300, 300, 3));
-        c.record(10, 3);
-        c.record(20, 3);
-        let s = c.record(30, 3).unwrap();
-        // The window maximum restarts, the overall one does not.
-        assert_eq!((s.mean, s.window_max, s.max), (20, 30, 300));
-    }
-
-    #[test]
-    fn a_sum_past_the_counter_saturates_instead_of_wrapping() {
-        let mut c = Cycles::new();
-        assert_eq!(c.record(u32::MAX - 1, 2), None);
-        let s = c.record(10, 2).unwrap();
-        // Wrapped, the sum would be 8 and the mean 4.
-        assert_eq!((s.mean, s.max), (u32::MAX / 2, u32::MAX - 1));
-    }
-
-    #[test]
     fn the_main_loop_sees_each_snapshot_once() {
         let p = Published::new();
         let mut seen = 0;
         assert_eq!(p.read_new(&mut seen), None);
         let s = Snapshot {
             ticks: 20_000,
-            cycles: Summary {
+            cycles: CycleSummary {
                 mean: 700,
                 window_max: 900,
                 max: 1200,

@@ -3,7 +3,10 @@
 //! A user's coil never has its datasheet's resistance: the winding's tolerance and its
 //! temperature move it by tens of per cent, and the law's current loop, the residual
 //! detector's bounds and the thermal model all start from it. The first measurement is
-//! therefore the coil's resistance, with the loop open:
+//! therefore the coil's resistance, with the loop open; the second, the position sensor's
+//! readings at the two end stops.
+//!
+//! # The coil's resistance
 //!
 //! 1. two voltage steps, `u1` then `u2`, each chosen for a fraction of the rated current
 //!    ([`LOW_SHARE`], [`HIGH_SHARE`]) at the file's resistance;
@@ -20,8 +23,35 @@
 //! armature leaves (a window in which the position moves more than its noise is averaged
 //! again, up to [`MAX_RESTARTS`] times). The step is abandoned, with its reason, when the current exceeds the
 //! rating (a coil far below the file's resistance) or the currents of the two steps do not
-//! differ (an open coil); a fault, a disarm or any other order also ends it. Everything
-//! here runs in the control interrupt: no allocation, no panic, `f32` only.
+//! differ (an open coil); a fault, a disarm or any other order also ends it.
+//!
+//! # The end stops
+//!
+//! A position sensor carries an offset and a gain error of a few per cent of the stroke,
+//! which no controller acting on its reading removes. The readings at the two stops fix
+//! both. Still with the loop open, and with the voltages now set from the measured
+//! resistance, so that the current stays below the rating whatever the file said:
+//!
+//! 1. **open stop**: the coil off; once the armature has come back and rests (the wait is
+//!    [`RELEASE_PERIODS`] of the slowest mechanical period the identification admits,
+//!    `2 pi / w_n` with the spring and the mass [`SPREAD`] off the file), the reading is
+//!    averaged over a window in which it stays still;
+//! 2. **approach**: the voltage ramps over [`RAMP_PERIODS`] mechanical periods to the one
+//!    that holds [`NEAR_SHARE`] of the rated current, slowly against the coil's and the
+//!    armature's time constants: the current follows the ramp, the magnet pulls the
+//!    armature over to the closed stop, the coil's back-EMF damping the last, unstable
+//!    part of the travel (the magnet's stiffness exceeds the spring's near the stop);
+//! 3. **closed stop**: the reading is averaged at [`NEAR_SHARE`] and again at
+//!    [`FULL_SHARE`] of the rated current. An armature against the stop does not move
+//!    when the pull grows; one that moved between the two was held by its spring short
+//!    of the stop, which the rated current then cannot reach.
+//!
+//! The travel between the two readings must be positive (else the sensor is wired
+//! backwards) and at least [`MIN_TRAVEL_SHARE`] of the stroke (else the armature is stuck,
+//! or no spring brings it back). The end points are means of the file's calibrated reading:
+//! the offset and the gain of the sensor follow from them and the stroke.
+//!
+//! Everything here runs in the control interrupt: no allocation, no panic, `f32` only.
 
 use serde::{Deserialize, Serialize};
 
@@ -42,6 +72,18 @@ pub const MIN_AVERAGE_S: f32 = 0.02;
 /// Averaging windows a step may restart because the armature was still moving (its
 /// motion induces a voltage the steady state must not contain) before it gives up.
 pub const MAX_RESTARTS: u32 = 20;
+/// Slowest mechanical periods waited after the coil is switched off, before the open
+/// stop's window.
+pub const RELEASE_PERIODS: f32 = 1.0;
+/// Slowest mechanical periods the approach's voltage ramp lasts.
+pub const RAMP_PERIODS: f32 = 1.0;
+/// Share of the rated current (at the measured resistance) the approach ends at.
+pub const NEAR_SHARE: f32 = 0.75;
+/// Share of the rated current of the last hold at the closed stop: the pull grows by
+/// `(FULL / NEAR)^2`, 60 %, and an armature against the stop does not move.
+pub const FULL_SHARE: f32 = 0.95;
+/// Least travel between the stops, as a share of the file's stroke.
+pub const MIN_TRAVEL_SHARE: f32 = 0.5;
 
 /// What the identification does, computed by the main loop from the parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,30 +99,56 @@ pub struct Plan {
     /// Largest spread of the position readings over a window with the armature at rest
     /// \[m\] (the sensor's noise): a wider one restarts the window.
     pub still_m: f32,
+    /// Ticks waited after the coil is switched off before the open stop's window (and at
+    /// each hold at the closed stop).
+    pub release_ticks: u32,
+    /// Ticks of the approach's voltage ramp.
+    pub ramp_ticks: u32,
+    /// The file's stroke \[m\].
+    pub stroke_m: f32,
+}
+
+/// What the plan is made from: the file's actuator, the board's rate and its noise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coil {
+    /// Coil resistance \[ohm\].
+    pub resistance_ohm: f32,
+    /// Largest inductance, at the closed stop \[H\].
+    pub closed_inductance_h: f32,
+    /// Rated current \[A\].
+    pub rated_a: f32,
+    /// Mechanical natural frequency `sqrt(K / m)` \[rad/s\].
+    pub natural_rad_s: f32,
+    /// Stroke \[m\].
+    pub stroke_m: f32,
 }
 
 impl Plan {
-    /// The plan for a coil of `resistance_ohm` (the file's), `closed_inductance_h` (its
-    /// largest inductance, at the closed gap), rated for `rated_a`, at `rate_hz`, with a
-    /// position reading whose noise spans `still_m` at rest. `None` for values that are
-    /// not positive and finite.
+    /// The plan for the file's `coil`, at `rate_hz`, with a position reading whose noise
+    /// spans `still_m` at rest. `None` for values that are not positive and finite.
     #[must_use]
-    pub fn for_coil(
-        resistance_ohm: f32,
-        closed_inductance_h: f32,
-        rated_a: f32,
-        rate_hz: f32,
-        still_m: f32,
-    ) -> Option<Self> {
+    pub fn new(coil: &Coil, rate_hz: f32, still_m: f32) -> Option<Self> {
+        let Coil {
+            resistance_ohm,
+            closed_inductance_h,
+            rated_a,
+            natural_rad_s,
+            stroke_m,
+        } = *coil;
         let positive = |v: f32| v.is_finite() && v > 0.0;
         if !(positive(resistance_ohm)
             && positive(closed_inductance_h)
             && positive(rated_a)
+            && positive(natural_rad_s)
+            && positive(stroke_m)
             && positive(rate_hz)
             && positive(still_m))
         {
             return None;
         }
+        // The slowest armature admitted: spring SPREAD softer, mass SPREAD heavier.
+        let slowest_w = natural_rad_s * math::sqrt((1.0 - SPREAD) / (1.0 + SPREAD));
+        let period_s = 2.0 * core::f32::consts::PI / slowest_w;
         let slowest_s = closed_inductance_h * (1.0 + SPREAD) / (resistance_ohm * (1.0 - SPREAD));
         let settle_s = SETTLE_TIME_CONSTANTS * slowest_s;
         let ticks = |s: f32| {
@@ -102,14 +170,22 @@ impl Plan {
             average_ticks: ticks(math::max(settle_s, MIN_AVERAGE_S))?,
             abort_a: rated_a,
             still_m,
+            release_ticks: ticks(RELEASE_PERIODS * period_s + settle_s)?,
+            ramp_ticks: ticks(RAMP_PERIODS * period_s)?,
+            stroke_m,
         })
     }
 
-    /// Ticks the whole identification takes.
+    /// Ticks the whole identification takes when no window restarts: the resistance's
+    /// two steps, the open stop, the approach and the two holds at the closed stop.
     #[must_use]
     pub const fn ticks(&self) -> u64 {
-        let one = (self.settle_ticks as u64).saturating_add(self.average_ticks as u64);
-        one.saturating_mul(2)
+        let window = self.average_ticks as u64;
+        let step = (self.settle_ticks as u64).saturating_add(window);
+        let hold = (self.release_ticks as u64).saturating_add(window);
+        step.saturating_mul(2)
+            .saturating_add(hold.saturating_mul(3))
+            .saturating_add(self.ramp_ticks as u64)
     }
 }
 
@@ -123,6 +199,14 @@ pub enum Abort {
     NoResponse,
     /// The armature never came to rest (see [`MAX_RESTARTS`]).
     NotAtRest,
+    /// The armature moved between the two holds at the closed stop: its spring held it
+    /// short of the stop, which the rated current cannot reach.
+    NoStop,
+    /// The reading fell from the open stop to the closed one: the sensor reads backwards.
+    Backwards,
+    /// Less than [`MIN_TRAVEL_SHARE`] of the stroke between the stops: the armature is
+    /// stuck, or no spring brings it back.
+    NoTravel,
     /// A fault latched during the identification.
     Fault,
     /// Ended by an order (disarm, or another command).
@@ -137,6 +221,9 @@ impl Abort {
             Abort::OverRated => "current_above_rating",
             Abort::NoResponse => "no_response",
             Abort::NotAtRest => "not_at_rest",
+            Abort::NoStop => "closed_stop_not_reached",
+            Abort::Backwards => "position_backwards",
+            Abort::NoTravel => "no_travel",
             Abort::Fault => "fault",
             Abort::Stopped => "stopped",
         }
@@ -158,36 +245,85 @@ pub struct Resistance {
     pub vbus_v: f32,
 }
 
-/// One step's averaging window: sums of deviations from its first reading (which keeps
-/// the sum of squares well conditioned).
+/// The position readings at the two end stops, in the file's calibration.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Ends {
+    /// Mean reading at the open stop, the coil off \[m\].
+    pub open_m: f32,
+    /// Mean reading at the closed stop, at [`FULL_SHARE`] of the rated current \[m\].
+    pub closed_m: f32,
+    /// Two standard errors of the noisier of the two means \[m\].
+    pub spread_m: f32,
+}
+
+/// Everything a commissioning measured.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// The coil's resistance.
+    pub resistance: Resistance,
+    /// The position sensor's readings at the end stops.
+    pub ends: Ends,
+}
+
+/// One hold's averaging window: sums of deviations from its first reading (which keeps
+/// the sums of squares well conditioned).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Window {
-    i_ref: f32,
     n: u32,
     u: f32,
-    di: f32,
-    di2: f32,
     vbus: f32,
+    i: Moments,
+    x: Moments,
     x_min: f32,
     x_max: f32,
 }
 
+/// Running sums of one reading's deviations from the window's first.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Moments {
+    first: f32,
+    sum: f32,
+    squares: f32,
+}
+
+impl Moments {
+    const EMPTY: Self = Self {
+        first: 0.0,
+        sum: 0.0,
+        squares: 0.0,
+    };
+
+    fn add(&mut self, first: bool, v: f32) {
+        if first {
+            self.first = v;
+        }
+        let d = v - self.first;
+        self.sum += d;
+        self.squares += d * d;
+    }
+
+    /// Mean and the variance of the mean over `n` readings.
+    fn mean(&self, n: f32) -> (f32, f32) {
+        let mean_d = self.sum / n;
+        let var = math::max(self.squares / n - mean_d * mean_d, 0.0);
+        (self.first + mean_d, var / n)
+    }
+}
+
 impl Window {
     const EMPTY: Self = Self {
-        i_ref: 0.0,
         n: 0,
         u: 0.0,
-        di: 0.0,
-        di2: 0.0,
         vbus: 0.0,
+        i: Moments::EMPTY,
+        x: Moments::EMPTY,
         x_min: 0.0,
         x_max: 0.0,
     };
 
     fn add(&mut self, u_v: f32, m: &Measurement) {
-        let (i_a, vbus_v) = (m.i_a, m.vbus_v);
-        if self.n == 0 {
-            self.i_ref = i_a;
+        let first = self.n == 0;
+        if first {
             self.x_min = m.x_m;
             self.x_max = m.x_m;
         }
@@ -195,18 +331,24 @@ impl Window {
         self.x_max = math::max(self.x_max, m.x_m);
         self.n = self.n.saturating_add(1);
         self.u += u_v;
-        let d = i_a - self.i_ref;
-        self.di += d;
-        self.di2 += d * d;
-        self.vbus += vbus_v;
+        self.vbus += m.vbus_v;
+        self.i.add(first, m.i_a);
+        self.x.add(first, m.x_m);
+    }
+
+    fn n(&self) -> f32 {
+        self.n.max(1) as f32
     }
 
     /// Mean voltage, mean current, variance of the mean current.
-    fn means(&self) -> (f32, f32, f32) {
-        let n = self.n.max(1) as f32;
-        let mean_d = self.di / n;
-        let var = math::max(self.di2 / n - mean_d * mean_d, 0.0);
-        (self.u / n, self.i_ref + mean_d, var / n)
+    fn current(&self) -> (f32, f32, f32) {
+        let (i, var) = self.i.mean(self.n());
+        (self.u / self.n(), i, var)
+    }
+
+    /// Mean position and the variance of that mean.
+    fn position(&self) -> (f32, f32) {
+        self.x.mean(self.n())
     }
 }
 
@@ -216,20 +358,40 @@ pub enum Step {
     /// Apply this voltage \[V\].
     Drive(f32),
     /// Finished: coast; the result.
-    Done(Result<Resistance, Abort>),
+    Done(Result<Report, Abort>),
 }
 
-/// A resistance identification in progress.
+/// Where an identification stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    /// The resistance's first step.
+    Low,
+    /// Its second step.
+    High,
+    /// The coil off, the armature at the open stop.
+    Open,
+    /// The voltage ramp towards the closed stop.
+    Ramp,
+    /// The first hold at the closed stop.
+    Near,
+    /// The second.
+    Full,
+}
+
+/// An identification in progress.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Identification {
     plan: Plan,
-    /// In the second step.
-    second: bool,
-    /// Ticks into the step.
+    phase: Phase,
+    /// Ticks into the phase.
     tick: u32,
-    /// Windows restarted in this step.
+    /// Windows restarted in this phase.
     restarts: u32,
-    windows: [Window; 2],
+    window: Window,
+    /// The resistance's two steps, then the open stop and the first hold at the closed
+    /// one.
+    kept: [Window; 2],
+    resistance: Resistance,
 }
 
 impl Identification {
@@ -238,10 +400,18 @@ impl Identification {
     pub const fn new(plan: Plan) -> Self {
         Self {
             plan,
-            second: false,
+            phase: Phase::Low,
             tick: 0,
             restarts: 0,
-            windows: [Window::EMPTY; 2],
+            window: Window::EMPTY,
+            kept: [Window::EMPTY; 2],
+            resistance: Resistance {
+                ohm: 0.0,
+                spread_ohm: 0.0,
+                i_a: [0.0; 2],
+                u_v: [0.0; 2],
+                vbus_v: 0.0,
+            },
         }
     }
 
@@ -249,6 +419,34 @@ impl Identification {
     #[must_use]
     pub const fn plan(&self) -> &Plan {
         &self.plan
+    }
+
+    /// The voltage of a share of the rated current at the measured resistance \[V\].
+    fn share_v(&self, share: f32) -> f32 {
+        share * self.plan.abort_a * self.resistance.ohm
+    }
+
+    /// The phase's drive \[V\] and the ticks it waits before its window.
+    fn phase_drive(&self) -> (f32, u32) {
+        let p = &self.plan;
+        match self.phase {
+            Phase::Low => (p.u_v[0], p.settle_ticks),
+            Phase::High => (p.u_v[1], p.settle_ticks),
+            Phase::Open => (0.0, p.release_ticks),
+            Phase::Ramp => {
+                let done = self.tick as f32 / p.ramp_ticks.max(1) as f32;
+                (self.share_v(NEAR_SHARE) * done, p.ramp_ticks)
+            }
+            Phase::Near => (self.share_v(NEAR_SHARE), p.release_ticks),
+            Phase::Full => (self.share_v(FULL_SHARE), p.release_ticks),
+        }
+    }
+
+    fn enter(&mut self, phase: Phase) {
+        self.phase = phase;
+        self.tick = 0;
+        self.restarts = 0;
+        self.window = Window::EMPTY;
     }
 
     /// One tick: `m` is this tick's measurement, `applied_v` the voltage the bridge has
@@ -264,44 +462,70 @@ impl Identification {
         if m.i_a.abs() > self.plan.abort_a {
             return Step::Done(Err(Abort::OverRated));
         }
-        let settle = self.plan.settle_ticks;
-        if self.tick > settle {
-            // The averaging window starts after the wait, so that every reading in it
-            // ends a whole period of the step's own voltage (a drive takes effect one
-            // period after it is set).
-            let [first, second] = &mut self.windows;
-            let window = if self.second { second } else { first };
-            window.add(applied_v, m);
-        }
+        let (_, wait) = self.phase_drive();
         self.tick = self.tick.saturating_add(1);
-        if self.tick > settle.saturating_add(self.plan.average_ticks) {
-            let [first, second] = &mut self.windows;
-            let window = if self.second { second } else { first };
-            if window.x_max - window.x_min > self.plan.still_m {
-                // The armature moved during the window: its motion induced a voltage.
-                // Average again from here.
-                self.restarts = self.restarts.saturating_add(1);
-                if self.restarts > MAX_RESTARTS {
-                    return Step::Done(Err(Abort::NotAtRest));
+        if self.phase == Phase::Ramp {
+            if self.tick >= wait {
+                self.enter(Phase::Near);
+            }
+        } else {
+            if self.tick > wait {
+                // The averaging window starts after the wait, so that every reading in
+                // it ends a whole period of the hold's own voltage (a drive takes effect
+                // one period after it is set).
+                self.window.add(applied_v, m);
+            }
+            if self.tick > wait.saturating_add(self.plan.average_ticks) {
+                if self.window.x_max - self.window.x_min > self.plan.still_m {
+                    // The armature moved during the window: its motion induced a
+                    // voltage, and its mean is no stop's. Average again from here.
+                    self.restarts = self.restarts.saturating_add(1);
+                    if self.restarts > MAX_RESTARTS {
+                        return Step::Done(Err(Abort::NotAtRest));
+                    }
+                    self.window = Window::EMPTY;
+                    self.tick = wait;
+                } else if let Some(done) = self.finish() {
+                    return Step::Done(done);
                 }
-                *window = Window::EMPTY;
-                self.tick = settle.saturating_add(1);
-            } else if self.second {
-                return Step::Done(self.result());
-            } else {
-                self.second = true;
-                self.tick = 0;
-                self.restarts = 0;
             }
         }
-        let [low, high] = self.plan.u_v;
-        Step::Drive(if self.second { high } else { low })
+        Step::Drive(self.phase_drive().0)
     }
 
-    fn result(&self) -> Result<Resistance, Abort> {
-        let [first, second] = &self.windows;
-        let (u1, i1, var1) = first.means();
-        let (u2, i2, var2) = second.means();
+    /// A hold's window is complete: keep it and go on, or end.
+    fn finish(&mut self) -> Option<Result<Report, Abort>> {
+        let window = self.window;
+        let next = match self.phase {
+            Phase::Low => {
+                self.kept[0] = window;
+                Phase::High
+            }
+            Phase::High => {
+                match self.resistance(&window) {
+                    Ok(r) => self.resistance = r,
+                    Err(a) => return Some(Err(a)),
+                }
+                Phase::Open
+            }
+            Phase::Open => {
+                self.kept[0] = window;
+                Phase::Ramp
+            }
+            Phase::Near => {
+                self.kept[1] = window;
+                Phase::Full
+            }
+            Phase::Ramp | Phase::Full => return Some(self.ends(&window)),
+        };
+        self.enter(next);
+        None
+    }
+
+    fn resistance(&self, second: &Window) -> Result<Resistance, Abort> {
+        let first = &self.kept[0];
+        let (u1, i1, var1) = first.current();
+        let (u2, i2, var2) = second.current();
         let di = i2 - i1;
         // Less than a tenth of the expected difference: nothing answers the voltage.
         let expected = (HIGH_SHARE - LOW_SHARE) * self.plan.abort_a;
@@ -319,67 +543,213 @@ impl Identification {
             vbus_v: (first.vbus + second.vbus) / n,
         })
     }
+
+    fn ends(&self, full: &Window) -> Result<Report, Abort> {
+        let [open, near] = &self.kept;
+        let (open_m, var_open) = open.position();
+        let (near_m, _) = near.position();
+        let (closed_m, var_closed) = full.position();
+        let travel = closed_m - open_m;
+        let least = MIN_TRAVEL_SHARE * self.plan.stroke_m;
+        // A NaN travel (none can come from finite readings) is no travel either.
+        if travel.is_nan() || travel.abs() < least {
+            return Err(Abort::NoTravel);
+        }
+        if travel < 0.0 {
+            return Err(Abort::Backwards);
+        }
+        if (closed_m - near_m).abs() > self.plan.still_m {
+            return Err(Abort::NoStop);
+        }
+        Ok(Report {
+            resistance: self.resistance,
+            ends: Ends {
+                open_m,
+                closed_m,
+                spread_m: 2.0 * math::sqrt(math::max(var_open, var_closed)),
+            },
+        })
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// A coil `L i' = u - R i - e`, with a constant sensor offset `e_a` and a bridge drop
-    /// `drop_v`, exact exponential per tick; the drive applies one period late.
-    fn identify(r: f32, l: f32, offset_a: f32, drop_v: f32) -> (Plan, Result<Resistance, Abort>) {
-        let rate = 20_000.0;
-        let plan = Plan::for_coil(2.0, 0.02, 4.0, rate, 1e-5).unwrap();
-        let mut id = Identification::new(plan);
-        let (mut i, mut pending, mut applied) = (0.0_f32, 0.0_f32, 0.0_f32);
-        let decay = libm::expf(-r / (l * rate));
-        for _ in 0..plan.ticks() + 10 {
-            let u = applied - drop_v;
-            i = u / r + (i - u / r) * decay;
-            let m = Measurement {
-                x_m: 0.0,
-                i_a: i + offset_a,
-                vbus_v: 24.0,
-            };
-            match id.step(&m, applied) {
-                Step::Drive(v) => {
-                    applied = pending;
-                    pending = v;
-                }
-                Step::Done(r) => return (plan, r),
+    const RATE: f32 = 20_000.0;
+    const STROKE: f32 = 2e-3;
+
+    /// The file the plans are made from: 2 ohm, 20 mH, 4 A, a 1 kg armature on 4000 N/m
+    /// (63 rad/s), 2 mm of stroke.
+    const FILE: Coil = Coil {
+        resistance_ohm: 2.0,
+        closed_inductance_h: 0.02,
+        rated_a: 4.0,
+        natural_rad_s: 63.2,
+        stroke_m: STROKE,
+    };
+
+    /// A test actuator: the coil `L i' = u - R i` (exact exponential per tick) with a
+    /// constant sensor offset `offset_a` and a bridge drop `drop_v` while it drives, the
+    /// drive applied one period late; an armature of 1 kg on a spring `k` with friction 40 N s/m between
+    /// stops at 0 and [`STROKE`], pulled by `pull(i, x)`; the reading `read(x)`.
+    struct Rig {
+        r: f32,
+        l: f32,
+        offset_a: f32,
+        drop_v: f32,
+        k: f32,
+        pull: fn(f32, f32) -> f32,
+        read: fn(f32) -> f32,
+        stuck: bool,
+    }
+
+    /// A magnet whose pull grows as the gap (0.5 mm residual) closes: 4 A at the open
+    /// stop pulls 24 N, 3.8 times what the spring asks at the closed one.
+    fn magnet(i: f32, x: f32) -> f32 {
+        let g = 0.5e-3 + STROKE - x;
+        1.5 * i * i * (0.5e-3 + STROKE) * (0.5e-3 + STROKE) / (g * g)
+    }
+
+    impl Rig {
+        fn coil(r: f32) -> Self {
+            Self {
+                r,
+                l: 0.02,
+                offset_a: 0.05,
+                drop_v: 0.3,
+                k: 4000.0,
+                pull: magnet,
+                read: |x| x,
+                stuck: false,
             }
         }
-        (plan, Err(Abort::Stopped))
+
+        /// Runs a whole identification; its result and the highest current.
+        fn run(&self) -> (Result<Report, Abort>, f32) {
+            let plan = Plan::new(&FILE, RATE, 1e-5).unwrap();
+            let mut id = Identification::new(plan);
+            let (mut i, mut pending, mut applied) = (0.0_f32, 0.0_f32, 0.0_f32);
+            let (mut x, mut v, mut peak) = (0.0_f32, 0.0_f32, 0.0_f32);
+            let decay = libm::expf(-self.r / (self.l * RATE));
+            let h = 1.0 / RATE;
+            for _ in 0..10 * plan.ticks() {
+                // The bridge's drop while it drives; coasting, nothing.
+                let u = if applied > 0.0 {
+                    applied - self.drop_v
+                } else {
+                    applied
+                };
+                i = u / self.r + (i - u / self.r) * decay;
+                peak = peak.max(i);
+                if !self.stuck {
+                    let a = (self.pull)(i, x) - self.k * x - 40.0 * v;
+                    v += a * h;
+                    x += v * h;
+                    if x <= 0.0 || x >= STROKE {
+                        x = x.clamp(0.0, STROKE);
+                        v = 0.0;
+                    }
+                }
+                let m = Measurement {
+                    x_m: (self.read)(x),
+                    i_a: i + self.offset_a,
+                    vbus_v: 24.0,
+                };
+                match id.step(&m, applied) {
+                    Step::Drive(v) => {
+                        applied = pending;
+                        pending = v;
+                    }
+                    Step::Done(r) => return (r, peak),
+                }
+            }
+            (Err(Abort::Stopped), peak)
+        }
     }
 
     #[test]
-    fn the_plan_follows_the_coil() {
-        let p = Plan::for_coil(2.0, 0.02, 4.0, 20_000.0, 1e-5).unwrap();
+    fn the_plan_follows_the_coil_and_the_armature() {
+        let p = Plan::new(&FILE, RATE, 1e-5).unwrap();
         // Slowest coil: 0.02 * 1.5 / (2 * 0.5) = 30 ms; six of them, 180 ms = 3600 ticks.
         assert_eq!(p.settle_ticks, 3600);
         assert_eq!(p.average_ticks, 3600);
         assert_eq!(p.u_v, [0.3 * 4.0 * 2.0, 0.6 * 4.0 * 2.0]);
         assert_eq!(p.abort_a, 4.0);
+        // Slowest armature: 63.2 * sqrt(0.5 / 1.5) = 36.49 rad/s, a period of 172.2 ms
+        // (3444 ticks); the release adds the coil's 180 ms.
+        assert_eq!(p.ramp_ticks, 3444);
+        assert_eq!(p.release_ticks, 7044);
         // A fast coil averages at least 20 ms.
-        let fast = Plan::for_coil(20.0, 0.002, 0.3, 50_000.0, 1e-5).unwrap();
+        let fast = Plan::new(
+            &Coil {
+                resistance_ohm: 20.0,
+                closed_inductance_h: 0.002,
+                rated_a: 0.3,
+                ..FILE
+            },
+            50_000.0,
+            1e-5,
+        )
+        .unwrap();
         assert_eq!(fast.average_ticks, 1000);
-        assert!(Plan::for_coil(0.0, 0.02, 4.0, 20_000.0, 1e-5).is_none());
-        assert!(Plan::for_coil(2.0, f32::NAN, 4.0, 20_000.0, 1e-5).is_none());
+        for bad in [
+            Coil {
+                resistance_ohm: 0.0,
+                ..FILE
+            },
+            Coil {
+                closed_inductance_h: f32::NAN,
+                ..FILE
+            },
+            Coil {
+                natural_rad_s: 0.0,
+                ..FILE
+            },
+            Coil {
+                stroke_m: -1.0,
+                ..FILE
+            },
+        ] {
+            assert!(Plan::new(&bad, RATE, 1e-5).is_none(), "{bad:?}");
+        }
     }
 
     #[test]
-    fn the_resistance_is_found_through_an_offset_and_a_drop() {
+    fn the_resistance_and_the_stops_are_found_through_offsets_and_a_drop() {
         for r in [1.4_f32, 2.0, 2.6] {
-            let (_, got) = identify(r, 0.02, 0.05, 0.3);
+            let mut rig = Rig::coil(r);
+            // A sensor 3 % of the stroke off and 3 % steep.
+            rig.read = |x| 0.03 * STROKE + 1.03 * x;
+            let (got, peak) = rig.run();
             let got = got.unwrap();
-            assert!((got.ohm / r - 1.0).abs() < 1e-3, "{r}: {got:?}");
+            assert!((got.resistance.ohm / r - 1.0).abs() < 1e-3, "{r}: {got:?}");
+            assert!((got.ends.open_m - 0.03 * STROKE).abs() < 1e-9, "{got:?}");
+            assert!((got.ends.closed_m - 1.06 * STROKE).abs() < 1e-9, "{got:?}");
+            // The holds at the closed stop stay below the rating, whatever the file said.
+            assert!(peak < 0.96 * 4.0, "{r}: {peak} A");
         }
     }
 
     #[test]
     fn a_low_resistance_stops_above_the_rating_and_an_open_coil_is_named() {
         // 2 ohm in the file, 1.1 ohm in the coil: the second step drives 4.8 V, 4.4 A.
-        assert_eq!(identify(1.1, 0.02, 0.0, 0.0).1, Err(Abort::OverRated));
-        assert_eq!(identify(1e6, 0.02, 0.0, 0.0).1, Err(Abort::NoResponse));
+        assert_eq!(Rig::coil(1.1).run().0, Err(Abort::OverRated));
+        assert_eq!(Rig::coil(1e6).run().0, Err(Abort::NoResponse));
+    }
+
+    #[test]
+    fn a_backwards_sensor_a_stuck_armature_and_a_short_pull_are_named() {
+        let mut backwards = Rig::coil(2.0);
+        backwards.read = |x| STROKE - x;
+        assert_eq!(backwards.run().0, Err(Abort::Backwards));
+        let mut stuck = Rig::coil(2.0);
+        stuck.stuck = true;
+        assert_eq!(stuck.run().0, Err(Abort::NoTravel));
+        // A pull that does not grow as the gap closes (14.4 N at 4 A): the spring holds
+        // the armature at 2.0 mm * 0.56 at 75 % of the rating and 0.9 at 95 %.
+        let mut short = Rig::coil(2.0);
+        short.pull = |i, _| 0.9 * i * i;
+        assert_eq!(short.run().0, Err(Abort::NoStop));
     }
 }

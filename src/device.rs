@@ -41,7 +41,7 @@
 //!   the set point's source) or following the analog set point.
 //! * **Moving**: armed, a move in progress (the reference shaping's).
 //! * **Commissioning** (entered from Disarmed by [`Command::Commission`], nothing
-//!   latched, sensors and bus ready): the loop open, the bridge driven by the coil's
+//!   latched, sensors and bus ready): the loop open, the bridge driven by the actuator's
 //!   identification ([`crate::commission`]); it returns to Disarmed when the result is in,
 //!   when any order other than a status, stream or capture arrives (the bridge coasts at
 //!   once), or to Fault when a fault latches (every tick still converts and checks the
@@ -582,7 +582,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                     self.identification = None;
                     self.last_drive_v = 0.0;
                     self.commissioned = match r {
-                        Ok(r) => Commissioned::Resistance(r),
+                        Ok(r) => Commissioned::Done(r),
                         Err(a) => Commissioned::Aborted(a),
                     };
                     self.mode = Mode::Disarmed;
@@ -923,7 +923,7 @@ fn commission_tick<P: SetDutyCycle, O: OutputPin>(
 ) -> (
     TickStatus,
     Option<Fault>,
-    Option<Result<commission::Resistance, commission::Abort>>,
+    Option<Result<commission::Report, commission::Abort>>,
 ) {
     let (m, verdict) = sensed(cfg, frame);
     let mut status = TickStatus {
@@ -1281,14 +1281,16 @@ impl Dispatcher {
         // The position's noise at rest: the allowance the detectors use for the
         // difference of two readings, twice (a window's extremes, not two readings).
         let still_m = 2.0 * crate::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
-        commission::Plan::for_coil(
-            r,
-            t.coil_closed_s * r,
-            a.coil.rated_current_a,
-            self.board.rate_hz,
-            still_m,
-        )
-        .ok_or_else(|| Self::invalid("coil.resistance_ohm", r, crate::config::Reason::NotPositive))
+        let coil = commission::Coil {
+            resistance_ohm: r,
+            closed_inductance_h: t.coil_closed_s * r,
+            rated_a: a.coil.rated_current_a,
+            natural_rad_s: t.natural_rad_s,
+            stroke_m: a.mechanics.stroke_m,
+        };
+        commission::Plan::new(&coil, self.board.rate_hz, still_m).ok_or_else(|| {
+            Self::invalid("coil.resistance_ohm", r, crate::config::Reason::NotPositive)
+        })
     }
 
     fn invalid(param: &'static str, value: f32, reason: crate::config::Reason) -> Refusal<'static> {

@@ -76,7 +76,7 @@ use crate::config;
 pub const BAUD: u32 = 460_800;
 
 /// Version of the message definitions; the first byte of every frame.
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 /// Largest frame before COBS: version, message and CRC \[bytes\].
 pub const MAX_RAW: usize = 250;
 /// Largest frame on the wire, delimiter included \[bytes\]: COBS adds one byte per 254 and
@@ -258,8 +258,8 @@ pub enum Commissioned {
     Never,
     /// In progress.
     Running,
-    /// The coil's resistance.
-    Resistance(crate::commission::Resistance),
+    /// Finished: the coil's resistance and the position sensor's end stops.
+    Done(crate::commission::Report),
     /// Stopped without a result.
     Aborted(crate::commission::Abort),
 }
@@ -988,7 +988,7 @@ mod tests {
             }
         }
         // Another version, with a correct CRC.
-        let mut raw = [2u8, 1, 2, 0, 0, 0, 0];
+        let mut raw = [VERSION + 1, 1, 2, 0, 0, 0, 0];
         let crc = CRC.checksum(&raw[..3]).to_le_bytes();
         raw[3..].copy_from_slice(&crc);
         let mut frame = [0u8; 16];
@@ -996,8 +996,8 @@ mod tests {
         assert_eq!(
             decode::<Request>(&mut frame[..k]),
             Err(FrameError::Version {
-                found: 2,
-                expected: 1
+                found: VERSION + 1,
+                expected: VERSION
             })
         );
         // Correct CRC and version, an unknown command (variant 200).

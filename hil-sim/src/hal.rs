@@ -536,6 +536,13 @@ pub struct Converter {
 }
 
 impl Converter {
+    /// Sets the position channel's gain error and offset \[code\] (an injected sensor
+    /// fault, or one off its calibration); its noise is kept.
+    pub fn set_position_error(&mut self, gain_error: f64, offset_code: f64) {
+        self.model.position.gain_error = gain_error;
+        self.model.position.offset_code = offset_code;
+    }
+
     /// Converts the true position \[m\], current \[A\] and bus voltage \[V\] now and returns
     /// the frame converted `delay_samples` periods ago (the first frame until then).
     pub fn sample(&mut self, x_m: f64, i_a: f64, vbus_v: f64) -> Frame {

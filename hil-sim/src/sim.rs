@@ -415,6 +415,8 @@ pub struct Stepper {
     last: Input,
     /// The coil circuit is open (an injected fault): no current flows.
     coil_open: bool,
+    /// The armature is jammed where it is (an injected fault).
+    jammed: bool,
     /// The board's over-current comparator's level \[A\] (`None`: no comparator).
     break_a: Option<f64>,
     /// The comparator has tripped: the bridge coasts, whatever the lines select.
@@ -461,6 +463,7 @@ impl Stepper {
             impacts: Vec::new(),
             last,
             coil_open: false,
+            jammed: false,
             break_a: bridge.break_current_a.map(f64::from),
             broken: false,
         })
@@ -469,8 +472,23 @@ impl Stepper {
     /// Opens the coil circuit (an injected fault): from now on no current flows, whatever
     /// the bridge applies.
     pub fn open_coil(&mut self) {
-        self.coil_open = true;
-        self.state.y[2] = 0.0;
+        self.set_coil_open(true);
+    }
+
+    /// Jams the armature where it is (a foreign body, a seized guide), or frees it.
+    pub fn set_jammed(&mut self, jammed: bool) {
+        self.jammed = jammed;
+        if jammed {
+            self.state.y[1] = 0.0;
+        }
+    }
+
+    /// Opens the coil circuit, or closes it again.
+    pub fn set_coil_open(&mut self, open: bool) {
+        self.coil_open = open;
+        if open {
+            self.state.y[2] = 0.0;
+        }
     }
 
     /// The board's over-current comparator has tripped: the bridge's outputs are off until
@@ -496,6 +514,12 @@ impl Stepper {
     /// Re-enables the outputs after a comparator trip (a re-arm).
     pub fn release_break(&mut self) {
         self.broken = false;
+    }
+
+    /// The plant, to change (an injected fault, or a part off its datasheet): it takes
+    /// effect from the next period.
+    pub fn plant_mut(&mut self) -> &mut Params {
+        &mut self.plant
     }
 
     /// Changes the coil resistance (an injected short of turns) \[ohm\].
@@ -643,7 +667,12 @@ impl Stepper {
                 Phase::Driven { .. } | Phase::Coast => self.supply.coast(i, self.diode_drop_v),
             };
             let u0 = input.coil_voltage_v(i).abs();
+            let x0 = self.state.y[0];
             let hit = self.plant.step(&mut self.state, &input, h);
+            if self.jammed {
+                self.state.y[0] = x0;
+                self.state.y[1] = 0.0;
+            }
             if self.coil_open {
                 // i = 0 exactly in both electrical states (current, or flux linkage).
                 self.state.y[2] = 0.0;

@@ -80,9 +80,32 @@ pub enum Injection {
     CutSave(u64),
     /// The coil's resistance \[ohm\] (a winding off its datasheet, or warm).
     Resistance(f64),
+    /// The coil's circuit open (a broken wire), or closed again.
+    CoilOpen(bool),
+    /// The armature jammed where it is, or free again.
+    Jammed(bool),
     /// The bridge driver's fault output (over-temperature, under-voltage), wired to the
     /// timer's break input with the current comparator: active or gone.
     DriverFault(bool),
+    /// The armature off its datasheet: mass \[kg\], spring rate \[N/m\], preload \[N\],
+    /// friction \[N s/m\] (a broken spring: zero rate and preload).
+    Mechanics {
+        /// Moving mass \[kg\].
+        mass_kg: f64,
+        /// Spring rate \[N/m\].
+        spring_n_per_m: f64,
+        /// Spring preload \[N\].
+        preload_n: f64,
+        /// Viscous friction \[N s/m\].
+        friction_n_s_per_m: f64,
+    },
+    /// The position sensor's gain error (relative) and offset \[code\]; its noise kept.
+    PositionSensor {
+        /// Relative gain error (`-2` reads backwards about the calibration's offset).
+        gain_error: f64,
+        /// Offset \[code\].
+        offset_code: f64,
+    },
 }
 
 /// The plant side: what the firmware's timer, converter and bridge see.
@@ -122,6 +145,8 @@ pub struct VirtualBoard {
     starts: u32,
     last_boot: Option<Boot>,
     cut_saves: u32,
+    /// Largest coil current magnitude since the last [`VirtualBoard::take_peak_current_a`].
+    peak_current_a: f64,
 }
 
 /// The store's flash range (the chip's two sectors, [`PAGE`] bytes each).
@@ -186,6 +211,7 @@ impl VirtualBoard {
             starts: 0,
             last_boot: None,
             cut_saves: 0,
+            peak_current_a: 0.0,
         };
         b.start(None)?;
         Ok(b)
@@ -276,7 +302,28 @@ impl VirtualBoard {
             }
             Injection::CutSave(step) => self.save_cut = Some(step),
             Injection::Resistance(r) => self.plant.stepper.set_resistance_ohm(r),
+            Injection::CoilOpen(open) => self.plant.stepper.set_coil_open(open),
+            Injection::Jammed(jammed) => self.plant.stepper.set_jammed(jammed),
             Injection::DriverFault(active) => self.plant.driver_fault = active,
+            Injection::Mechanics {
+                mass_kg,
+                spring_n_per_m,
+                preload_n,
+                friction_n_s_per_m,
+            } => {
+                let p = self.plant.stepper.plant_mut();
+                p.mass_kg = mass_kg;
+                p.spring_n_per_m = spring_n_per_m;
+                p.preload_n = preload_n;
+                p.friction_n_s_per_m = friction_n_s_per_m;
+            }
+            Injection::PositionSensor {
+                gain_error,
+                offset_code,
+            } => self
+                .plant
+                .converter
+                .set_position_error(gain_error, offset_code),
         }
     }
 
@@ -294,6 +341,12 @@ impl VirtualBoard {
     #[must_use]
     pub const fn ticks(&self) -> u64 {
         self.ticks
+    }
+
+    /// The largest coil current magnitude (the plant's, not the converter's) since the
+    /// last call \[A\].
+    pub fn take_peak_current_a(&mut self) -> f64 {
+        std::mem::take(&mut self.peak_current_a)
     }
 
     /// How often the application started (power-on, restarts, saves).
@@ -376,6 +429,7 @@ impl VirtualBoard {
             self.plant.stepper.trip_break();
         }
         let truth = self.plant.stepper.sample();
+        self.peak_current_a = self.peak_current_a.max(truth.i_a.abs());
         let x = if self.plant.position_open {
             -1.0
         } else {

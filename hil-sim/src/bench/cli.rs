@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Context};
 use clap::{Parser, Subcommand};
 use ema::actuator::{Actuator, Magnetics};
-use ema::commission::Resistance;
+use ema::commission::{self, Report};
 use ema::params::{self, Kind, Params};
 use ema::protocol::{
     CaptureState, Command, Commissioned, Message, Mode, Reply, Signal, Status, Trigger, Value,
@@ -98,7 +98,8 @@ pub enum Verb {
     Watch(WatchArgs),
     /// Captures a move's response and compares it with the simulator's prediction.
     Capture(CaptureArgs),
-    /// Measures the coil's resistance with the loop open (disarmed, nothing latched).
+    /// Measures the coil's resistance and the position sensor's readings at the two end
+    /// stops, with the loop open (disarmed, nothing latched).
     Commission(CommissionArgs),
     /// Runs the virtual board on a pseudo-terminal.
     Virtual(VirtualArgs),
@@ -335,7 +336,7 @@ pub fn status<P: std::io::Read + Write>(link: &mut Link<P>) -> anyhow::Result<St
 }
 
 /// Runs a commissioning and waits for its outcome; prints it, and with `apply` sets the
-/// measured resistance.
+/// measured resistance (the end stops are reported, not yet applied).
 ///
 /// # Errors
 /// Refused, stopped (with the board's reason), no outcome within the timeout, or (with
@@ -344,11 +345,13 @@ pub fn commission<P: std::io::Read + Write>(
     link: &mut Link<P>,
     args: &CommissionArgs,
     out: &mut dyn Write,
-) -> anyhow::Result<Resistance> {
-    let file_r = match get(link, "coil.resistance_ohm")? {
-        Value::Number(r) => r,
-        other => bail!("coil.resistance_ohm is not a number: {other:?}"),
+) -> anyhow::Result<Report> {
+    let number = |link: &mut Link<P>, name: &str| match get(link, name)? {
+        Value::Number(v) => Ok(v),
+        other => bail!("{name} is not a number: {other:?}"),
     };
+    let file_r = number(link, "coil.resistance_ohm")?;
+    let stroke_m = number(link, "mechanics.stroke_m")?;
     link.done(Command::Commission)?;
     let start = Instant::now();
     let r = loop {
@@ -359,7 +362,11 @@ pub fn commission<P: std::io::Read + Write>(
                 reply: Reply::Commissioned(c),
                 ..
             } => match c {
-                Commissioned::Resistance(r) => break r,
+                Commissioned::Done(r) => break r,
+                Commissioned::Aborted(commission::Abort::Fault) => {
+                    let latched = status(link)?.fault.map_or("none".into(), fault_name);
+                    bail!("commissioning stopped: fault {latched} latched, bridge coasting")
+                }
                 Commissioned::Aborted(a) => bail!("commissioning stopped: {}", a.name()),
                 Commissioned::Never => bail!("the board never started the commissioning"),
                 Commissioned::Running => {}
@@ -371,6 +378,8 @@ pub fn commission<P: std::io::Read + Write>(
         }
         std::thread::sleep(Duration::from_millis(20));
     };
+    let report = r;
+    let r = report.resistance;
     writeln!(
         out,
         "coil resistance {:.4} ohm +- {:.4} (two standard errors); the file says {file_r} ohm ({:+.1} %)",
@@ -383,6 +392,23 @@ pub fn commission<P: std::io::Read + Write>(
         "steps: {:.3} V -> {:.4} A, {:.3} V -> {:.4} A, bus {:.2} V",
         r.u_v[0], r.i_a[0], r.u_v[1], r.i_a[1], r.vbus_v
     )?;
+    let e = report.ends;
+    let travel_m = e.closed_m - e.open_m;
+    writeln!(
+        out,
+        "position at the open stop {:.1} um, at the closed stop {:.1} um (+- {:.2} um, two standard errors, in the file's calibration)",
+        1e6 * e.open_m,
+        1e6 * e.closed_m,
+        1e6 * e.spread_m
+    )?;
+    writeln!(
+        out,
+        "sensor: offset {:+.2} % of the stroke, gain {:+.2} % (travel {:.1} um against the file's {:.1} um)",
+        100.0 * e.open_m / stroke_m,
+        100.0 * (travel_m / stroke_m - 1.0),
+        1e6 * travel_m,
+        1e6 * stroke_m
+    )?;
     if args.apply {
         link.done(Command::Set {
             name: "coil.resistance_ohm",
@@ -394,7 +420,7 @@ pub fn commission<P: std::io::Read + Write>(
             r.ohm
         )?;
     }
-    Ok(r)
+    Ok(report)
 }
 
 /// A status as the `status` command prints it.

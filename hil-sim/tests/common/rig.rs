@@ -2,7 +2,7 @@
 //! link to it opened by the terminal's path, as `bench --port` does: the rig of the tests
 //! that drive the board through the real serial path.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread;
 use std::time::Duration;
@@ -15,6 +15,9 @@ use hil_sim::bench::link::Link;
 pub struct Rig {
     pub link: Link<serialport::TTYPort>,
     pub inject: mpsc::Sender<Injection>,
+    /// The largest coil current since the last [`Rig::take_peak_current_a`] (the bits of a
+    /// non-negative `f64`, which order as the values do).
+    peak: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
     /// The board's thread; it ends with the board's starts and cut saves.
     board: Option<thread::JoinHandle<(u32, u32)>>,
@@ -29,6 +32,8 @@ impl Rig {
         let (tx, rx) = mpsc::channel::<Injection>();
         let stop = Arc::new(AtomicBool::new(false));
         let stop2 = stop.clone();
+        let peak = Arc::new(AtomicU64::new(0));
+        let peak2 = peak.clone();
         let board = thread::spawn(move || {
             let mut master = master;
             serialport::SerialPort::set_timeout(&mut master, Duration::from_millis(1)).unwrap();
@@ -37,6 +42,7 @@ impl Rig {
                 while let Ok(i) = rx.try_recv() {
                     b.inject(i);
                 }
+                peak2.fetch_max(b.take_peak_current_a().to_bits(), Ordering::Relaxed);
             })
             .unwrap();
             (b.starts(), b.cut_saves())
@@ -46,6 +52,7 @@ impl Rig {
         Self {
             link,
             inject: tx,
+            peak,
             stop,
             board: Some(board),
             _slave: slave,
@@ -67,6 +74,12 @@ impl Rig {
             } => format!("{r:?}"),
             other => panic!("not refused: {other:?}"),
         }
+    }
+
+    /// The largest coil current since the last call (or the start) \[A\].
+    #[allow(dead_code)]
+    pub fn take_peak_current_a(&self) -> f64 {
+        f64::from_bits(self.peak.swap(0, Ordering::Relaxed))
     }
 
     /// Stops the board; its starts and cut saves.

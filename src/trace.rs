@@ -95,12 +95,14 @@ pub struct Case {
 }
 
 /// The paper's law on the paper's actuator at 20 kHz from a 24 V bus.
+#[cfg(feature = "paper")]
 fn paper_20khz_24v() -> Result<Settings, crate::config::Error> {
     Ok(Settings::paper(20_000.0, 24.0))
 }
 
 /// The paper's law with its boundary layer, one sample of measurement delay, otherwise as
 /// [`paper_20khz_24v`].
+#[cfg(feature = "paper")]
 fn boundary_layer_20khz_24v() -> Result<Settings, crate::config::Error> {
     Ok(Settings {
         law: crate::law::Settings::BoundaryLayer(crate::law::paper::Gains::paper()),
@@ -119,10 +121,12 @@ fn practical_20khz_24v() -> Result<Settings, crate::config::Error> {
 /// traces, the bit-exactness checks and the per-law instruction counts on the Cortex-M4F
 /// all iterate over this list; a new law gets its entry here.
 pub const CASES: &[Case] = &[
+    #[cfg(feature = "paper")]
     Case {
         name: crate::law::NAMES[0],
         settings: paper_20khz_24v,
     },
+    #[cfg(feature = "paper")]
     Case {
         name: crate::law::NAMES[1],
         settings: boundary_layer_20khz_24v,

@@ -30,7 +30,7 @@
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
-use crate::actuator::{self, Actuator};
+use crate::actuator::Actuator;
 use crate::bridge::{Drive, HBridge};
 use crate::config::{self, Error};
 use crate::law::{self, Law, Reference};
@@ -81,6 +81,7 @@ impl Settings {
     /// sets); bus window 0.5 to 1.25 times the supply; the sensor and coil detectors of
     /// the product, but no I^2 t (the paper's law asks for 21 A at start-up) and no
     /// tracking detector (its step response takes 0.4 s).
+    #[cfg(feature = "paper")]
     #[must_use]
     pub fn paper(rate_hz: f32, vbus_v: f32) -> Self {
         let plant = Plant::paper();
@@ -101,8 +102,8 @@ impl Settings {
             shaping: None,
             monitors: Monitors {
                 thermal: None,
-                stuck: Some(actuator::stuck_detector(&sense.position)),
-                residual: Some(actuator::residual_detector(&sense.current, rate_hz)),
+                stuck: Some(crate::actuator::stuck_detector(&sense.position)),
+                residual: Some(crate::actuator::residual_detector(&sense.current, rate_hz)),
                 tracking: None,
             },
         }

@@ -90,9 +90,11 @@ pub const NAMES: [&str; 3] = ["paper", "boundary_layer", "practical"];
 )]
 pub enum Settings {
     /// The paper's law ([`paper`]).
+    #[cfg(feature = "paper")]
     Paper(paper::Gains),
     /// The paper's law with a boundary layer derived from the discrete stability condition
     /// ([`boundary`]).
+    #[cfg(feature = "paper")]
     BoundaryLayer(paper::Gains),
     /// The practical law ([`practical`]): discrete-time, the product's.
     Practical(practical::Gains),
@@ -111,7 +113,9 @@ impl Settings {
         delay_ticks: u8,
     ) -> Result<Config, crate::config::Error> {
         Ok(match self {
+            #[cfg(feature = "paper")]
             Settings::Paper(gains) => Config::Paper(gains.build(plant, ts_s)?),
+            #[cfg(feature = "paper")]
             Settings::BoundaryLayer(gains) => {
                 Config::BoundaryLayer(boundary::Config::build(gains, plant, ts_s, delay_ticks)?)
             }
@@ -125,7 +129,9 @@ impl Settings {
     #[must_use]
     pub const fn name(&self) -> &'static str {
         match self {
+            #[cfg(feature = "paper")]
             Settings::Paper(_) => NAMES[0],
+            #[cfg(feature = "paper")]
             Settings::BoundaryLayer(_) => NAMES[1],
             Settings::Practical(_) => NAMES[2],
         }
@@ -137,8 +143,10 @@ impl Settings {
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Config {
     /// The paper's law exactly as published ([`paper`]).
+    #[cfg(feature = "paper")]
     Paper(paper::Config),
     /// The paper's law with a boundary layer ([`boundary`]).
+    #[cfg(feature = "paper")]
     BoundaryLayer(boundary::Config),
     /// The practical law ([`practical`]): discrete-time, the product's.
     Practical(practical::Config),
@@ -148,7 +156,8 @@ pub enum Config {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum State {
-    /// State of [`Config::Paper`] and [`Config::BoundaryLayer`].
+    /// State of `Config::Paper` and `Config::BoundaryLayer`.
+    #[cfg(feature = "paper")]
     Paper(paper::State),
     /// State of [`Config::Practical`].
     Practical(practical::State),
@@ -159,6 +168,7 @@ impl Config {
     #[must_use]
     pub fn initial_state(&self) -> State {
         match self {
+            #[cfg(feature = "paper")]
             Config::Paper(_) | Config::BoundaryLayer(_) => State::Paper(paper::State::default()),
             Config::Practical(_) => State::Practical(practical::State::default()),
         }
@@ -168,7 +178,9 @@ impl Config {
     #[must_use]
     pub const fn name(&self) -> &'static str {
         match self {
+            #[cfg(feature = "paper")]
             Config::Paper(_) => NAMES[0],
+            #[cfg(feature = "paper")]
             Config::BoundaryLayer(_) => NAMES[1],
             Config::Practical(_) => NAMES[2],
         }
@@ -176,8 +188,14 @@ impl Config {
 }
 
 impl Default for State {
+    #[cfg(feature = "paper")]
     fn default() -> Self {
         State::Paper(paper::State::default())
+    }
+
+    #[cfg(not(feature = "paper"))]
+    fn default() -> Self {
+        State::Practical(practical::State::default())
     }
 }
 
@@ -187,15 +205,21 @@ impl Law for Config {
     #[inline]
     fn step(&self, state: &mut State, input: &Input) -> Output {
         match (self, &mut *state) {
+            #[cfg(feature = "paper")]
             (Config::Paper(law), State::Paper(s)) => law.step(s, input),
+            #[cfg(feature = "paper")]
             (Config::BoundaryLayer(law), State::Paper(s)) => law.step(s, input),
             (Config::Practical(law), State::Practical(s)) => law.step(s, input),
+            // Without the paper's laws the practical law's state is the only one.
+            #[cfg(feature = "paper")]
             _ => {
                 // A state of another law: start this law from its initial state. The
                 // second call matches one of the arms above.
                 *state = self.initial_state();
                 match (self, state) {
+                    #[cfg(feature = "paper")]
                     (Config::Paper(law), State::Paper(s)) => law.step(s, input),
+                    #[cfg(feature = "paper")]
                     (Config::BoundaryLayer(law), State::Paper(s)) => law.step(s, input),
                     (Config::Practical(law), State::Practical(s)) => law.step(s, input),
                     _ => Output::default(),

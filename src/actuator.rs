@@ -270,6 +270,10 @@ impl TimeScales {
     }
 }
 
+/// Periods between a conversion and the duty computed from it taking effect: the board
+/// converts around the top of the count and the duty is applied at the next period
+/// boundary \[-\].
+pub const DELAY_TICKS: u8 = 1;
 /// Default `alpha` per unit of [`TimeScales::mechanical_rad_s`] \[-\].
 pub const DEFAULT_ALPHA_PER_W: f32 = 2.0;
 /// Default observer bandwidth per unit of `alpha` \[-\].
@@ -694,7 +698,7 @@ impl Actuator {
                 VBUS_MIN_SHARE * b.supply_v,
                 VBUS_MAX_SHARE * b.supply_v,
             ),
-            delay_ticks: 1,
+            delay_ticks: DELAY_TICKS,
             shaping: Some(shaping),
             monitors: self.monitors(&sense, &plant, &shaping)?,
         };

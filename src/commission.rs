@@ -13,7 +13,7 @@
 //! 2. at each, wait [`SETTLE_TIME_CONSTANTS`] of the slowest coil time constant the
 //!    identification admits (the closed gap's inductance over the lowest resistance,
 //!    [`SPREAD`] around the file), then average the applied voltage and the measured
-//!    current over as many ticks again (at least [`MIN_AVERAGE_S`]);
+//!    current over [`AVERAGE_TIME_CONSTANTS`] of them (at least [`MIN_AVERAGE_S`]);
 //! 3. `R = (u2 - u1) / (i2 - i1)`. The difference removes what is constant in both steps:
 //!    the current sensor's residual offset and the bridge's voltage drops. At steady state
 //!    the armature is at rest wherever the force left it, so no back-EMF enters.
@@ -21,7 +21,7 @@
 //! The uncertainty reported is two standard errors of that quotient from the spread of the
 //! averaged currents: the converter's noise only, not what a slow residual motion of the
 //! armature leaves (a window in which the position moves more than its noise is averaged
-//! again, up to [`MAX_RESTARTS`] times). The step is abandoned, with its reason, when the current exceeds the
+//! again, for at most [`PATIENCE_PERIODS`] of the slowest mechanical period). The step is abandoned, with its reason, when the current exceeds the
 //! rating (a coil far below the file's resistance) or the currents of the two steps do not
 //! differ (an open coil); a fault, a disarm or any other order also ends it.
 //!
@@ -46,6 +46,21 @@
 //!    when the pull grows; one that moved between the two was held by its spring short
 //!    of the stop, which the rated current then cannot reach.
 //!
+//! The coil's inductance is measured at both stops too, with the armature still: at the
+//! open stop from a probe that steps the current from [`PROBE_SHARE`] of the rating to
+//! [`PROBE_HIGH_SHARE`] and back (a pull small enough to leave the armature near its
+//! stop), at the closed stop from the step from [`FULL_SHARE`] back to [`NEAR_SHARE`].
+//! Each step goes back to a level measured just before, `i_end`; sampled at the same
+//! point of every PWM period whatever the ripple, the current then decays geometrically,
+//! `i(k+1) - i_end = a (i(k) - i_end)` with `a = exp(-Ts R / L)`. `a` is fitted by least
+//! squares over the readings the converter's delay lets answer the step, while the current
+//! is more than [`FLOOR_SIGMAS`] noise deviations from its end (the converter's noise,
+//! measured over the hold's window, taken out of the regressor's sum), and
+//! `L = -Ts R / ln a` with the measured `R`. The probe's pull moves the armature a little
+//! off the open stop (the end stops calibrate how far); `1/L` being linear in the gap,
+//! the line through the probe's and the closed stop's values gives the open stop's. The
+//! two inductances are the magnetic circuit's two-inductance form in the actuator file.
+//!
 //! The travel between the two readings must be positive (else the sensor is wired
 //! backwards) and at least [`MIN_TRAVEL_SHARE`] of the stroke (else the armature is stuck,
 //! or no spring brings it back). The end points are means of the file's calibrated reading:
@@ -69,19 +84,36 @@ pub const SPREAD: f32 = 0.5;
 pub const SETTLE_TIME_CONSTANTS: f32 = 6.0;
 /// Shortest averaging window \[s\] (many converter samples even for a fast coil).
 pub const MIN_AVERAGE_S: f32 = 0.02;
-/// Averaging windows a step may restart because the armature was still moving (its
-/// motion induces a voltage the steady state must not contain) before it gives up.
-pub const MAX_RESTARTS: u32 = 20;
+/// Slowest coil time constants averaged at each hold (at least [`MIN_AVERAGE_S`]).
+pub const AVERAGE_TIME_CONSTANTS: f32 = 2.0;
+/// Slowest mechanical periods a hold may spend restarting its window because the armature
+/// was still moving (its motion induces a voltage the steady state must not contain, and
+/// its mean position is no stop's) before it gives up.
+pub const PATIENCE_PERIODS: f32 = 4.0;
 /// Slowest mechanical periods waited after the coil is switched off, before the open
 /// stop's window.
-pub const RELEASE_PERIODS: f32 = 1.0;
+pub const RELEASE_PERIODS: f32 = 0.5;
 /// Slowest mechanical periods the approach's voltage ramp lasts.
-pub const RAMP_PERIODS: f32 = 1.0;
+pub const RAMP_PERIODS: f32 = 0.5;
 /// Share of the rated current (at the measured resistance) the approach ends at.
 pub const NEAR_SHARE: f32 = 0.75;
 /// Share of the rated current of the last hold at the closed stop: the pull grows by
 /// `(FULL / NEAR)^2`, 60 %, and an armature against the stop does not move.
 pub const FULL_SHARE: f32 = 0.95;
+/// Share of the rated current of the inductance probe's lower level at the open stop.
+pub const PROBE_SHARE: f32 = 0.05;
+/// Share of the rated current of the probe's upper level: the step back from it is the
+/// one fitted, large for many readings above the noise, small for a pull (4 % of the
+/// rated one) that leaves the armature near its stop.
+pub const PROBE_HIGH_SHARE: f32 = 0.2;
+/// Readings per time constant at the open stop the probe's cycles gather together (a
+/// coil faster than the period gives few per step).
+pub const PROBE_READINGS: f32 = 32.0;
+/// Most cycles of the probe.
+pub const MAX_PROBE_CYCLES: u32 = 16;
+/// Noise standard deviations a current must be from its end for its reading to enter a
+/// step-response fit.
+pub const FLOOR_SIGMAS: f32 = 6.0;
 /// Least travel between the stops, as a share of the file's stroke.
 pub const MIN_TRAVEL_SHARE: f32 = 0.5;
 
@@ -96,6 +128,15 @@ pub struct Plan {
     pub average_ticks: u32,
     /// Current above which the identification stops \[A\] (the coil's rating).
     pub abort_a: f32,
+    /// Interrupt period \[s\].
+    pub period_s: f32,
+    /// Readings after a voltage step that may still be conversions from before it (the
+    /// converter's delay).
+    pub skip_readings: u32,
+    /// A step response is fitted while the current is at least this far from its end
+    /// \[A\] ([`FLOOR_SIGMAS`] times the current reading's noise): below it a reading
+    /// carries more noise than decay.
+    pub floor_a: f32,
     /// Largest spread of the position readings over a window with the armature at rest
     /// \[m\] (the sensor's noise): a wider one restarts the window.
     pub still_m: f32,
@@ -104,6 +145,14 @@ pub struct Plan {
     pub release_ticks: u32,
     /// Ticks of the approach's voltage ramp.
     pub ramp_ticks: u32,
+    /// Ticks a hold may spend restarting its window.
+    pub patience_ticks: u32,
+    /// Ticks at each level of the inductance probe's cycle ([`SETTLE_TIME_CONSTANTS`] of
+    /// the slowest coil at the open stop).
+    pub probe_half_ticks: u32,
+    /// Cycles of the probe: enough for [`PROBE_READINGS`] readings per time constant at
+    /// the open stop, at most [`MAX_PROBE_CYCLES`].
+    pub probe_cycles: u32,
     /// The file's stroke \[m\].
     pub stroke_m: f32,
 }
@@ -113,6 +162,8 @@ pub struct Plan {
 pub struct Coil {
     /// Coil resistance \[ohm\].
     pub resistance_ohm: f32,
+    /// Smallest inductance, at the open stop \[H\].
+    pub open_inductance_h: f32,
     /// Largest inductance, at the closed stop \[H\].
     pub closed_inductance_h: f32,
     /// Rated current \[A\].
@@ -124,12 +175,20 @@ pub struct Coil {
 }
 
 impl Plan {
-    /// The plan for the file's `coil`, at `rate_hz`, with a position reading whose noise
-    /// spans `still_m` at rest. `None` for values that are not positive and finite.
+    /// The plan for the file's `coil`, at `rate_hz`, with readings `delay_ticks` periods
+    /// old, a position reading whose noise spans `still_m` at rest and a current reading
+    /// of noise `current_noise_a` (RMS). `None` for values that are not positive and finite.
     #[must_use]
-    pub fn new(coil: &Coil, rate_hz: f32, still_m: f32) -> Option<Self> {
+    pub fn new(
+        coil: &Coil,
+        rate_hz: f32,
+        delay_ticks: u8,
+        still_m: f32,
+        current_noise_a: f32,
+    ) -> Option<Self> {
         let Coil {
             resistance_ohm,
+            open_inductance_h,
             closed_inductance_h,
             rated_a,
             natural_rad_s,
@@ -137,12 +196,14 @@ impl Plan {
         } = *coil;
         let positive = |v: f32| v.is_finite() && v > 0.0;
         if !(positive(resistance_ohm)
+            && positive(open_inductance_h)
             && positive(closed_inductance_h)
             && positive(rated_a)
             && positive(natural_rad_s)
             && positive(stroke_m)
             && positive(rate_hz)
-            && positive(still_m))
+            && positive(still_m)
+            && positive(current_noise_a))
         {
             return None;
         }
@@ -150,6 +211,7 @@ impl Plan {
         let slowest_w = natural_rad_s * math::sqrt((1.0 - SPREAD) / (1.0 + SPREAD));
         let period_s = 2.0 * core::f32::consts::PI / slowest_w;
         let slowest_s = closed_inductance_h * (1.0 + SPREAD) / (resistance_ohm * (1.0 - SPREAD));
+        let slowest_open_s = open_inductance_h * (1.0 + SPREAD) / (resistance_ohm * (1.0 - SPREAD));
         let settle_s = SETTLE_TIME_CONSTANTS * slowest_s;
         let ticks = |s: f32| {
             let t = libm::ceilf(s * rate_hz);
@@ -167,24 +229,48 @@ impl Plan {
                 HIGH_SHARE * rated_a * resistance_ohm,
             ],
             settle_ticks: ticks(settle_s)?,
-            average_ticks: ticks(math::max(settle_s, MIN_AVERAGE_S))?,
+            average_ticks: ticks(math::max(AVERAGE_TIME_CONSTANTS * slowest_s, MIN_AVERAGE_S))?,
             abort_a: rated_a,
+            period_s: 1.0 / rate_hz,
+            skip_readings: u32::from(delay_ticks) + 1,
+            floor_a: FLOOR_SIGMAS * current_noise_a,
             still_m,
             release_ticks: ticks(RELEASE_PERIODS * period_s + settle_s)?,
             ramp_ticks: ticks(RAMP_PERIODS * period_s)?,
+            patience_ticks: ticks(PATIENCE_PERIODS * period_s)?,
+            probe_half_ticks: ticks(SETTLE_TIME_CONSTANTS * slowest_open_s)?,
+            probe_cycles: {
+                let per_constant = open_inductance_h / resistance_ohm * rate_hz;
+                let c = libm::ceilf(PROBE_READINGS / per_constant);
+                // At least one, at most the cap: within u32.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let c = math::min(math::max(c, 1.0), MAX_PROBE_CYCLES as f32) as u32;
+                c
+            },
             stroke_m,
         })
     }
 
+    /// Levels the probe's cycle holds: up and down `probe_cycles` times, ending down.
+    #[must_use]
+    pub const fn probe_halves(&self) -> u32 {
+        self.probe_cycles.saturating_mul(2).saturating_sub(1)
+    }
+
     /// Ticks the whole identification takes when no window restarts: the resistance's
-    /// two steps, the open stop, the approach and the two holds at the closed stop.
+    /// two steps, the probe's cycles and the step back at the closed stop; the open stop,
+    /// the probe's two levels, the approach and the two holds at the closed stop.
     #[must_use]
     pub const fn ticks(&self) -> u64 {
         let window = self.average_ticks as u64;
         let step = (self.settle_ticks as u64).saturating_add(window);
         let hold = (self.release_ticks as u64).saturating_add(window);
-        step.saturating_mul(2)
-            .saturating_add(hold.saturating_mul(3))
+        let cycle = (self.probe_half_ticks as u64)
+            .saturating_mul(self.probe_halves() as u64)
+            .saturating_add(window);
+        step.saturating_mul(3)
+            .saturating_add(cycle)
+            .saturating_add(hold.saturating_mul(5))
             .saturating_add(self.ramp_ticks as u64)
     }
 }
@@ -197,7 +283,7 @@ pub enum Abort {
     OverRated,
     /// The two steps gave the same current: no coil, or an open one.
     NoResponse,
-    /// The armature never came to rest (see [`MAX_RESTARTS`]).
+    /// The armature never came to rest (see [`PATIENCE_PERIODS`]).
     NotAtRest,
     /// The armature moved between the two holds at the closed stop: its spring held it
     /// short of the stop, which the rated current cannot reach.
@@ -207,6 +293,12 @@ pub enum Abort {
     /// Less than [`MIN_TRAVEL_SHARE`] of the stroke between the stops: the armature is
     /// stuck, or no spring brings it back.
     NoTravel,
+    /// A current step did not decay geometrically: the armature moved, or something
+    /// other than a coil answers.
+    NoDecay,
+    /// The probe's pull took the armature more than half its stroke off the open stop:
+    /// the open stop's inductance cannot be extrapolated from there.
+    PulledIn,
     /// A fault latched during the identification.
     Fault,
     /// Ended by an order (disarm, or another command).
@@ -224,6 +316,8 @@ impl Abort {
             Abort::NoStop => "closed_stop_not_reached",
             Abort::Backwards => "position_backwards",
             Abort::NoTravel => "no_travel",
+            Abort::NoDecay => "step_response_not_a_coil",
+            Abort::PulledIn => "probe_pulled_the_armature_in",
             Abort::Fault => "fault",
             Abort::Stopped => "stopped",
         }
@@ -256,6 +350,15 @@ pub struct Ends {
     pub spread_m: f32,
 }
 
+/// The coil's inductance at the two end stops.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Inductance {
+    /// At the open stop (the largest gap) \[H\].
+    pub open_h: f32,
+    /// At the closed stop (the residual gap) \[H\].
+    pub closed_h: f32,
+}
+
 /// Everything a commissioning measured.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -263,6 +366,85 @@ pub struct Report {
     pub resistance: Resistance,
     /// The position sensor's readings at the end stops.
     pub ends: Ends,
+    /// The coil's inductance at the end stops.
+    pub inductance: Inductance,
+}
+
+/// A current's response to a voltage step towards a level measured before, the armature
+/// still: `y(k) = i(k) - i_end` obeys `y(k+1) = a y(k)`; sums for the least-squares fit
+/// of `a`, from the first reading the converter's delay lets answer the step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Decay {
+    /// The level the current settles at \[A\] (`NaN`: no fit in this phase).
+    end_a: f32,
+    /// Readings since the step (`u32::MAX`: the step has not come yet).
+    since: u32,
+    /// The last deviation \[A\] (`NaN`: the fit has ended).
+    last: f32,
+    n: u32,
+    sxy: f32,
+    sxx: f32,
+}
+
+impl Decay {
+    const NONE: Self = Self::towards(f32::NAN);
+
+    const fn towards(end_a: f32) -> Self {
+        Self {
+            end_a,
+            since: u32::MAX,
+            last: 0.0,
+            n: 0,
+            sxy: 0.0,
+            sxx: 0.0,
+        }
+    }
+
+    /// The next step goes to `end_a`; the sums so far are kept.
+    fn retarget(&mut self, end_a: f32) {
+        self.end_a = end_a;
+        self.since = u32::MAX;
+        self.last = 0.0;
+    }
+
+    /// A reading `i_a`; `stepped`: the voltage over the period it ends differs from the
+    /// one before; `skip`: readings after the step that may still be the converter's
+    /// earlier conversions; `floor_a`: the fit ends once the current is nearer its end.
+    fn add(&mut self, i_a: f32, stepped: bool, skip: u32, floor_a: f32) {
+        if self.end_a.is_nan() || self.last.is_nan() {
+            return;
+        }
+        if self.since == u32::MAX {
+            if !stepped {
+                return;
+            }
+            self.since = 0;
+        } else {
+            self.since = self.since.saturating_add(1);
+        }
+        if self.since < skip {
+            return;
+        }
+        let y = i_a - self.end_a;
+        if self.since > skip {
+            if self.last.abs() < floor_a {
+                // Settled: the rest is noise (`NaN` ends the fit).
+                self.last = f32::NAN;
+                return;
+            }
+            self.n = self.n.saturating_add(1);
+            self.sxy += self.last * y;
+            self.sxx += self.last * self.last;
+        }
+        self.last = y;
+    }
+
+    /// The factor per period `a`, the readings' noise variance `noise_a2` taken out of
+    /// the regressor's sum; `None` unless `0 < a < 1`.
+    fn factor(&self, noise_a2: f32) -> Option<f32> {
+        let a = self.sxy / (self.sxx - self.n as f32 * noise_a2);
+        (a > 0.0 && a < 1.0).then_some(a)
+    }
 }
 
 /// One hold's averaging window: sums of deviations from its first reading (which keeps
@@ -350,6 +532,11 @@ impl Window {
     fn position(&self) -> (f32, f32) {
         self.x.mean(self.n())
     }
+
+    /// The current readings' variance (one reading's, not the mean's) \[A^2\].
+    fn current_noise(&self) -> f32 {
+        self.i.mean(self.n()).1 * self.n()
+    }
 }
 
 /// What the identification asks of the bridge at one tick.
@@ -370,13 +557,28 @@ enum Phase {
     High,
     /// The coil off, the armature at the open stop.
     Open,
+    /// The inductance probe's lower level at the open stop.
+    ProbeLow,
+    /// Its upper level.
+    ProbeHigh,
+    /// Between the two levels, [`Plan::probe_cycles`] times, ending at the lower: every
+    /// step's response fitted.
+    ProbeCycle,
     /// The voltage ramp towards the closed stop.
     Ramp,
     /// The first hold at the closed stop.
     Near,
     /// The second.
     Full,
+    /// Back to the first hold's level: the step response fitted.
+    Back,
 }
+
+/// Indices of the windows an identification keeps.
+const OPEN: usize = 0;
+const PROBE: usize = 1;
+const NEAR: usize = 2;
+const FULL: usize = 3;
 
 /// An identification in progress.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -385,13 +587,20 @@ pub struct Identification {
     phase: Phase,
     /// Ticks into the phase.
     tick: u32,
-    /// Windows restarted in this phase.
+    /// Ticks of windows restarted in this phase.
     restarts: u32,
     window: Window,
-    /// The resistance's two steps, then the open stop and the first hold at the closed
-    /// one.
-    kept: [Window; 2],
+    /// The windows the result is made from (the resistance's first step in the first).
+    kept: [Window; 4],
     resistance: Resistance,
+    /// The step response being fitted.
+    decay: Decay,
+    /// The inductance at the probe's position near the open stop \[H\].
+    probe_h: f32,
+    /// The current at the probe's lower level \[A\].
+    probe_end_a: f32,
+    /// The voltage over the period the last reading ended \[V\].
+    previous_v: f32,
 }
 
 impl Identification {
@@ -404,7 +613,7 @@ impl Identification {
             tick: 0,
             restarts: 0,
             window: Window::EMPTY,
-            kept: [Window::EMPTY; 2],
+            kept: [Window::EMPTY; 4],
             resistance: Resistance {
                 ohm: 0.0,
                 spread_ohm: 0.0,
@@ -412,6 +621,10 @@ impl Identification {
                 u_v: [0.0; 2],
                 vbus_v: 0.0,
             },
+            decay: Decay::NONE,
+            probe_h: 0.0,
+            probe_end_a: 0.0,
+            previous_v: 0.0,
         }
     }
 
@@ -433,13 +646,29 @@ impl Identification {
             Phase::Low => (p.u_v[0], p.settle_ticks),
             Phase::High => (p.u_v[1], p.settle_ticks),
             Phase::Open => (0.0, p.release_ticks),
+            // The probe's pull moves the armature: its levels wait as the open stop does.
+            Phase::ProbeLow => (self.share_v(PROBE_SHARE), p.release_ticks),
+            Phase::ProbeHigh => (self.share_v(PROBE_HIGH_SHARE), p.release_ticks),
+            Phase::ProbeCycle => {
+                let wait = p.probe_half_ticks.saturating_mul(p.probe_halves());
+                let high = self.tick < wait && self.probe_high(self.tick);
+                let share = if high { PROBE_HIGH_SHARE } else { PROBE_SHARE };
+                (self.share_v(share), wait)
+            }
             Phase::Ramp => {
                 let done = self.tick as f32 / p.ramp_ticks.max(1) as f32;
                 (self.share_v(NEAR_SHARE) * done, p.ramp_ticks)
             }
             Phase::Near => (self.share_v(NEAR_SHARE), p.release_ticks),
             Phase::Full => (self.share_v(FULL_SHARE), p.release_ticks),
+            Phase::Back => (self.share_v(NEAR_SHARE), p.settle_ticks),
         }
+    }
+
+    /// Whether the probe's cycle is at its upper level at tick `t`.
+    fn probe_high(&self, t: u32) -> bool {
+        t.checked_div(self.plan.probe_half_ticks)
+            .is_some_and(|half| half & 1 == 1)
     }
 
     fn enter(&mut self, phase: Phase) {
@@ -447,6 +676,12 @@ impl Identification {
         self.tick = 0;
         self.restarts = 0;
         self.window = Window::EMPTY;
+        // The steps back go to a level measured before: the fit's end.
+        self.decay = match phase {
+            Phase::ProbeCycle => Decay::towards(self.probe_end_a),
+            Phase::Back => Decay::towards(self.kept[NEAR].current().1),
+            _ => Decay::NONE,
+        };
     }
 
     /// One tick: `m` is this tick's measurement, `applied_v` the voltage the bridge has
@@ -464,6 +699,21 @@ impl Identification {
         }
         let (_, wait) = self.phase_drive();
         self.tick = self.tick.saturating_add(1);
+        let stepped = applied_v != core::mem::replace(&mut self.previous_v, applied_v);
+        if self.tick <= wait {
+            // A step's response, over the wait (as long as the slowest coil needs).
+            let p = &self.plan;
+            self.decay.add(m.i_a, stepped, p.skip_readings, p.floor_a);
+            if self.phase == Phase::ProbeCycle
+                && self.tick < wait
+                && self.tick.is_multiple_of(p.probe_half_ticks)
+            {
+                // The drive changes level now: the next step goes to the other one.
+                let (low_a, high_a) = (self.probe_end_a, self.kept[PROBE].current().1);
+                let high = self.probe_high(self.tick);
+                self.decay.retarget(if high { high_a } else { low_a });
+            }
+        }
         if self.phase == Phase::Ramp {
             if self.tick >= wait {
                 self.enter(Phase::Near);
@@ -476,11 +726,14 @@ impl Identification {
                 self.window.add(applied_v, m);
             }
             if self.tick > wait.saturating_add(self.plan.average_ticks) {
-                if self.window.x_max - self.window.x_min > self.plan.still_m {
+                // The steps back measure the current's noise over their windows: an
+                // armature that drifts back meanwhile does not matter there.
+                let measures_at_rest = !matches!(self.phase, Phase::ProbeCycle | Phase::Back);
+                if measures_at_rest && self.window.x_max - self.window.x_min > self.plan.still_m {
                     // The armature moved during the window: its motion induced a
                     // voltage, and its mean is no stop's. Average again from here.
-                    self.restarts = self.restarts.saturating_add(1);
-                    if self.restarts > MAX_RESTARTS {
+                    self.restarts = self.restarts.saturating_add(self.plan.average_ticks);
+                    if self.restarts > self.plan.patience_ticks {
                         return Step::Done(Err(Abort::NotAtRest));
                     }
                     self.window = Window::EMPTY;
@@ -509,14 +762,33 @@ impl Identification {
                 Phase::Open
             }
             Phase::Open => {
-                self.kept[0] = window;
-                Phase::Ramp
+                self.kept[OPEN] = window;
+                Phase::ProbeLow
             }
+            Phase::ProbeLow => {
+                self.probe_end_a = window.current().1;
+                Phase::ProbeHigh
+            }
+            Phase::ProbeHigh => {
+                self.kept[PROBE] = window;
+                Phase::ProbeCycle
+            }
+            Phase::ProbeCycle => match self.inductance(&window) {
+                Some(h) => {
+                    self.probe_h = h;
+                    Phase::Ramp
+                }
+                None => return Some(Err(Abort::NoDecay)),
+            },
             Phase::Near => {
-                self.kept[1] = window;
+                self.kept[NEAR] = window;
                 Phase::Full
             }
-            Phase::Ramp | Phase::Full => return Some(self.ends(&window)),
+            Phase::Full => {
+                self.kept[FULL] = window;
+                Phase::Back
+            }
+            Phase::Ramp | Phase::Back => return Some(self.report(&window)),
         };
         self.enter(next);
         None
@@ -544,15 +816,23 @@ impl Identification {
         })
     }
 
-    fn ends(&self, full: &Window) -> Result<Report, Abort> {
-        let [open, near] = &self.kept;
-        let (open_m, var_open) = open.position();
-        let (near_m, _) = near.position();
-        let (closed_m, var_closed) = full.position();
+    /// The inductance from the phase's step response (`window`: the hold after it, for
+    /// the converter's noise).
+    fn inductance(&self, window: &Window) -> Option<f32> {
+        let a = self.decay.factor(window.current_noise())?;
+        Some(-self.plan.period_s * self.resistance.ohm / libm::logf(a))
+    }
+
+    /// Everything, once the last step back has answered (`back`: its window).
+    fn report(&self, back: &Window) -> Result<Report, Abort> {
+        let (open_m, var_open) = self.kept[OPEN].position();
+        let (probe_m, _) = self.kept[PROBE].position();
+        let (near_m, _) = self.kept[NEAR].position();
+        let (closed_m, var_closed) = self.kept[FULL].position();
         let travel = closed_m - open_m;
-        let least = MIN_TRAVEL_SHARE * self.plan.stroke_m;
+        let stroke = self.plan.stroke_m;
         // A NaN travel (none can come from finite readings) is no travel either.
-        if travel.is_nan() || travel.abs() < least {
+        if travel.is_nan() || travel.abs() < MIN_TRAVEL_SHARE * stroke {
             return Err(Abort::NoTravel);
         }
         if travel < 0.0 {
@@ -561,8 +841,19 @@ impl Identification {
         if (closed_m - near_m).abs() > self.plan.still_m {
             return Err(Abort::NoStop);
         }
+        let closed_h = self.inductance(back).ok_or(Abort::NoDecay)?;
+        // The probe's pull moved the armature `x` off the open stop (the ends calibrate
+        // the reading): `1/L` is linear in the gap, so the line through the probe's and
+        // the closed stop's gives the open stop's.
+        let x = (probe_m - open_m) * stroke / travel;
+        if x.is_nan() || x >= MIN_TRAVEL_SHARE * stroke {
+            return Err(Abort::PulledIn);
+        }
+        let (inv_p, inv_c) = (1.0 / self.probe_h, 1.0 / closed_h);
+        let open_h = 1.0 / (inv_p + (inv_p - inv_c) * x / (stroke - x));
         Ok(Report {
             resistance: self.resistance,
+            inductance: Inductance { open_h, closed_h },
             ends: Ends {
                 open_m,
                 closed_m,
@@ -583,6 +874,7 @@ mod tests {
     /// (63 rad/s), 2 mm of stroke.
     const FILE: Coil = Coil {
         resistance_ohm: 2.0,
+        open_inductance_h: 0.02,
         closed_inductance_h: 0.02,
         rated_a: 4.0,
         natural_rad_s: 63.2,
@@ -627,7 +919,7 @@ mod tests {
 
         /// Runs a whole identification; its result and the highest current.
         fn run(&self) -> (Result<Report, Abort>, f32) {
-            let plan = Plan::new(&FILE, RATE, 1e-5).unwrap();
+            let plan = Plan::new(&FILE, RATE, 0, 1e-5, 1e-3).unwrap();
             let mut id = Identification::new(plan);
             let (mut i, mut pending, mut applied) = (0.0_f32, 0.0_f32, 0.0_f32);
             let (mut x, mut v, mut peak) = (0.0_f32, 0.0_f32, 0.0_f32);
@@ -670,26 +962,30 @@ mod tests {
 
     #[test]
     fn the_plan_follows_the_coil_and_the_armature() {
-        let p = Plan::new(&FILE, RATE, 1e-5).unwrap();
-        // Slowest coil: 0.02 * 1.5 / (2 * 0.5) = 30 ms; six of them, 180 ms = 3600 ticks.
+        let p = Plan::new(&FILE, RATE, 0, 1e-5, 1e-3).unwrap();
+        // Slowest coil: 0.02 * 1.5 / (2 * 0.5) = 30 ms; six of them, 180 ms = 3600 ticks;
+        // two averaged, 1200.
         assert_eq!(p.settle_ticks, 3600);
-        assert_eq!(p.average_ticks, 3600);
+        assert_eq!(p.average_ticks, 1200);
         assert_eq!(p.u_v, [0.3 * 4.0 * 2.0, 0.6 * 4.0 * 2.0]);
         assert_eq!(p.abort_a, 4.0);
-        // Slowest armature: 63.2 * sqrt(0.5 / 1.5) = 36.49 rad/s, a period of 172.2 ms
-        // (3444 ticks); the release adds the coil's 180 ms.
-        assert_eq!(p.ramp_ticks, 3444);
-        assert_eq!(p.release_ticks, 7044);
+        // Slowest armature: 63.2 * sqrt(0.5 / 1.5) = 36.49 rad/s, a period of 172.2 ms;
+        // half of it, 1722 ticks; the release adds the coil's 180 ms.
+        assert_eq!(p.ramp_ticks, 1722);
+        assert_eq!(p.release_ticks, 5322);
         // A fast coil averages at least 20 ms.
         let fast = Plan::new(
             &Coil {
                 resistance_ohm: 20.0,
+                open_inductance_h: 0.002,
                 closed_inductance_h: 0.002,
                 rated_a: 0.3,
                 ..FILE
             },
             50_000.0,
+            0,
             1e-5,
+            1e-3,
         )
         .unwrap();
         assert_eq!(fast.average_ticks, 1000);
@@ -711,7 +1007,7 @@ mod tests {
                 ..FILE
             },
         ] {
-            assert!(Plan::new(&bad, RATE, 1e-5).is_none(), "{bad:?}");
+            assert!(Plan::new(&bad, RATE, 0, 1e-5, 1e-3).is_none(), "{bad:?}");
         }
     }
 
@@ -726,6 +1022,12 @@ mod tests {
             assert!((got.resistance.ohm / r - 1.0).abs() < 1e-3, "{r}: {got:?}");
             assert!((got.ends.open_m - 0.03 * STROKE).abs() < 1e-9, "{got:?}");
             assert!((got.ends.closed_m - 1.06 * STROKE).abs() < 1e-9, "{got:?}");
+            // The test coil's inductance does not depend on the gap. Its time constant
+            // spans 200 to 290 periods: the fit's sums over as many readings in f32
+            // leave a few parts in ten thousand.
+            for h in [got.inductance.open_h, got.inductance.closed_h] {
+                assert!((h / 0.02 - 1.0).abs() < 3e-3, "{r}: {got:?}");
+            }
             // The holds at the closed stop stay below the rating, whatever the file said.
             assert!(peak < 0.96 * 4.0, "{r}: {peak} A");
         }

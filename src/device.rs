@@ -1283,14 +1283,20 @@ impl Dispatcher {
         let still_m = 2.0 * crate::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
         let coil = commission::Coil {
             resistance_ohm: r,
+            open_inductance_h: t.coil_open_s * r,
             closed_inductance_h: t.coil_closed_s * r,
             rated_a: a.coil.rated_current_a,
             natural_rad_s: t.natural_rad_s,
             stroke_m: a.mechanics.stroke_m,
         };
-        commission::Plan::new(&coil, self.board.rate_hz, still_m).ok_or_else(|| {
-            Self::invalid("coil.resistance_ohm", r, crate::config::Reason::NotPositive)
-        })
+        commission::Plan::new(
+            &coil,
+            self.board.rate_hz,
+            crate::actuator::DELAY_TICKS,
+            still_m,
+            crate::sense::NOISE_RMS_CODES * a.calibration().current.scale,
+        )
+        .ok_or_else(|| Self::invalid("coil.resistance_ohm", r, crate::config::Reason::NotPositive))
     }
 
     fn invalid(param: &'static str, value: f32, reason: crate::config::Reason) -> Refusal<'static> {

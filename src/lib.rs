@@ -23,7 +23,7 @@
 //! | [`law`] | the control laws: the paper's law and the practical variants |
 //! | [`supervisor`] | limits, latched faults, safe state |
 //! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
-//! | [`commission`] | measuring the actuator on the board, loop open: the coil's resistance from two voltage steps, the position sensor's readings at both end stops |
+//! | [`commission`] | measuring the actuator on the board, loop open: the coil's resistance from two voltage steps, its inductance at both end stops from step responses, the position sensor's readings there |
 //! | [`control`] | the configuration, the state and the one `tick` |
 //! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
 //! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |

@@ -408,6 +408,21 @@ impl Params {
         self.convention.gap_m(x_m)
     }
 
+    /// Every airgap's surface `scale` times what it is (flux fringing off the model): a
+    /// constant surface scaled, a rectangular pole's sides by `sqrt(scale)`.
+    pub fn scale_surfaces(&mut self, scale: f64) {
+        let side = scale.sqrt();
+        for s in &mut self.gaps {
+            match s {
+                Surface::Constant { s_m2 } => *s_m2 *= scale,
+                Surface::Rectangular { a_m, b_m, .. } => {
+                    *a_m *= side;
+                    *b_m *= side;
+                }
+            }
+        }
+    }
+
     /// `(min, max)` airgap over the stroke \[m\].
     #[must_use]
     pub fn gap_range_m(&self) -> (f64, f64) {

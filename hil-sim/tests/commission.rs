@@ -49,6 +49,7 @@ impl Commissioning for Rig {
         let args = CommissionArgs {
             apply: false,
             timeout_s: 60.0,
+            out: None,
         };
         cli::commission(&mut self.link, &args, &mut std::io::sink())
     }
@@ -126,7 +127,7 @@ fn a_coil_far_below_its_file_stops_above_the_rating_and_a_disarm_stops_it() {
 }
 
 /// The product's armature and position sensor drawn off the file (see the module docs).
-fn drawn(rng: &mut impl Rng, code_m: f64) -> (Injection, Injection, f64, f64, f64) {
+fn drawn(rng: &mut impl Rng, code_m: f64) -> (Injection, Injection, f64, f64, f64, f64) {
     let a = Actuator::PRODUCT;
     let m = &a.mechanics;
     let spread = |rng: &mut dyn rand::RngCore, v: f32, s: f64| {
@@ -149,7 +150,8 @@ fn drawn(rng: &mut impl Rng, code_m: f64) -> (Injection, Injection, f64, f64, f6
         offset_code,
     };
     let r = f64::from(a.coil.resistance_ohm) * rng.random_range(0.7..1.3);
-    (mechanics, sensor, r, gain_error, offset_code)
+    let surfaces = rng.random_range(0.7..1.3);
+    (mechanics, sensor, r, gain_error, offset_code, surfaces)
 }
 
 #[test]
@@ -160,14 +162,18 @@ fn drawn_actuators_have_their_stops_found_within_two_codes_below_the_rating() {
     let rated = f64::from(a.coil.rated_current_a);
     let rate = f64::from(a.board.rate_hz);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(ACTUATOR_SEED);
+    let sc = hil_sim::bench::board::scenario(&a, true).unwrap();
+    let file_plant = sc.plant.resolve(&sc.controller.plant);
     let mut rig = Rig::new(Options {
         noise: true,
         ..Options::default()
     });
+    let mut worst_l = 0.0_f64;
     let (mut worst_r, mut worst_codes, mut worst_peak, mut longest_s) =
         (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
     for k in 0..ACTUATORS {
-        let (mechanics, sensor, r, gain, offset) = drawn(&mut rng, code_m);
+        let (mechanics, sensor, r, gain, offset, surfaces) = drawn(&mut rng, code_m);
+        rig.inject.send(Injection::Surfaces(surfaces)).unwrap();
         rig.inject.send(mechanics).unwrap();
         rig.inject.send(sensor).unwrap();
         rig.coil(r);
@@ -187,9 +193,23 @@ fn drawn_actuators_have_their_stops_found_within_two_codes_below_the_rating() {
             codes(got.ends.closed_m, closed),
         );
         let e_r = f64::from(got.resistance.ohm) / r - 1.0;
+        let mut plant = file_plant.clone();
+        plant.scale_surfaces(surfaces);
+        let true_h = [0.0, stroke].map(|x| plant.inductance_h(plant.gap_m(x)));
+        let e_l = [got.inductance.open_h, got.inductance.closed_h]
+            .iter()
+            .zip(true_h)
+            .map(|(got, want)| f64::from(*got) / want - 1.0)
+            .fold(0.0_f64, |w, e| if e.abs() > w.abs() { e } else { w });
         eprintln!(
-            "draw {k}: R {:+.3} %, open stop {e_open:.2} codes, closed stop {e_closed:.2} codes, peak {peak:.3} A, {took_s:.2} s",
-            100.0 * e_r
+            "draw {k}: R {:+.3} %, L {:+.2} % (surfaces x{surfaces:.3}), open stop {e_open:.2} codes, closed stop {e_closed:.2} codes, peak {peak:.3} A, {took_s:.2} s",
+            100.0 * e_r,
+            100.0 * e_l
+        );
+        assert!(
+            e_l.abs() < 0.05,
+            "draw {k}: {:?} against {true_h:?} H",
+            got.inductance
         );
         assert!(
             e_r.abs() < 0.02,
@@ -207,13 +227,15 @@ fn drawn_actuators_have_their_stops_found_within_two_codes_below_the_rating() {
         assert!(took_s <= 10.0, "draw {k}: {took_s} s");
         assert_eq!(rig.status().mode, Mode::Disarmed);
         worst_r = worst_r.max(e_r.abs());
+        worst_l = worst_l.max(e_l.abs());
         worst_codes = worst_codes.max(e_open).max(e_closed);
         worst_peak = worst_peak.max(peak / rated);
         longest_s = longest_s.max(took_s);
     }
     eprintln!(
-        "seed {ACTUATOR_SEED:#x}: {ACTUATORS} actuators; worst R error {:.3} %, worst end stop {worst_codes:.2} codes, peak {:.1} % of the rating, longest {longest_s:.2} s",
+        "seed {ACTUATOR_SEED:#x}: {ACTUATORS} actuators; worst R error {:.3} %, worst L error {:.2} %, worst end stop {worst_codes:.2} codes, peak {:.1} % of the rating, longest {longest_s:.2} s",
         100.0 * worst_r,
+        100.0 * worst_l,
         100.0 * worst_peak
     );
 }
@@ -294,4 +316,39 @@ fn an_open_or_shorted_coil_a_backwards_sensor_a_jammed_armature_and_a_broken_spr
         }
         assert_eq!(rig.status().mode, Mode::Disarmed, "{what}");
     }
+}
+
+#[test]
+fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
+    let mut rig = Rig::new(Options {
+        noise: true,
+        ..Options::default()
+    });
+    rig.coil(1.1 * f64::from(Actuator::PRODUCT.coil.resistance_ohm));
+    let path = std::env::temp_dir().join(format!("ema-commissioned-{}.toml", std::process::id()));
+    let args = CommissionArgs {
+        apply: false,
+        timeout_s: 60.0,
+        out: Some(path.clone()),
+    };
+    let mut printed = Vec::new();
+    let got = cli::commission(&mut rig.link, &args, &mut printed).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    let file = hil_sim::actuator::parse(&text, "commissioned").unwrap();
+    assert_eq!(file.coil.resistance_ohm, got.resistance.ohm);
+    // Each inductance as measured, or moved by the same factor at most 5 % to keep the
+    // iron's reluctance positive (the head says how much).
+    let ema::actuator::Magnetics::Inductance { open_h, closed_h } = file.magnetics else {
+        panic!("{:?}", file.magnetics)
+    };
+    let moved = closed_h / got.inductance.closed_h;
+    assert!((moved - 1.0).abs() < 0.05, "{moved}");
+    assert!((open_h * moved / got.inductance.open_h - 1.0).abs() < 1e-5);
+    // Not the board's tuning: that was for the file's actuator.
+    assert_eq!(file.tuning, None);
+    assert_eq!(file.mechanics, Actuator::PRODUCT.mechanics);
+    let printed = String::from_utf8(printed).unwrap();
+    assert!(printed.contains("inductance at the open stop"), "{printed}");
+    eprintln!("{printed}{text}");
 }

@@ -84,6 +84,8 @@ pub enum Injection {
     CoilOpen(bool),
     /// The armature jammed where it is, or free again.
     Jammed(bool),
+    /// The airgaps' surfaces this many times the file's (flux fringing off the model).
+    Surfaces(f64),
     /// The bridge driver's fault output (over-temperature, under-voltage), wired to the
     /// timer's break input with the current comparator: active or gone.
     DriverFault(bool),
@@ -304,6 +306,11 @@ impl VirtualBoard {
             Injection::Resistance(r) => self.plant.stepper.set_resistance_ohm(r),
             Injection::CoilOpen(open) => self.plant.stepper.set_coil_open(open),
             Injection::Jammed(jammed) => self.plant.stepper.set_jammed(jammed),
+            Injection::Surfaces(scale) => {
+                let mut p = self.file_plant();
+                p.scale_surfaces(scale);
+                self.plant.stepper.plant_mut().gaps = p.gaps;
+            }
             Injection::DriverFault(active) => self.plant.driver_fault = active,
             Injection::Mechanics {
                 mass_kg,
@@ -341,6 +348,12 @@ impl VirtualBoard {
     #[must_use]
     pub const fn ticks(&self) -> u64 {
         self.ticks
+    }
+
+    /// The plant as the file describes it, before any injection.
+    #[must_use]
+    pub fn file_plant(&self) -> crate::plant::Params {
+        self.scenario.plant.resolve(&self.scenario.controller.plant)
     }
 
     /// The largest coil current magnitude (the plant's, not the converter's) since the

@@ -115,6 +115,11 @@ pub struct CommissionArgs {
     /// Longest wait for the result (s).
     #[arg(long, default_value_t = 60.0)]
     pub timeout_s: f64,
+    /// Writes the board's actuator file with the measured resistance and inductances in
+    /// it (the magnetic circuit in its two-inductance form), each value's uncertainty and
+    /// the end stops in its head: the file `hil-sim tune` takes.
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
 }
 
 /// Arguments of `watch`.
@@ -346,12 +351,12 @@ pub fn commission<P: std::io::Read + Write>(
     args: &CommissionArgs,
     out: &mut dyn Write,
 ) -> anyhow::Result<Report> {
-    let number = |link: &mut Link<P>, name: &str| match get(link, name)? {
-        Value::Number(v) => Ok(v),
-        other => bail!("{name} is not a number: {other:?}"),
-    };
-    let file_r = number(link, "coil.resistance_ohm")?;
-    let stroke_m = number(link, "mechanics.stroke_m")?;
+    let file = read_params(link)?.actuator;
+    let file_r = file.coil.resistance_ohm;
+    let stroke_m = file.mechanics.stroke_m;
+    let scales = file
+        .time_scales()
+        .map_err(|e| anyhow!("the board's actuator: {}", e))?;
     link.done(Command::Commission)?;
     let start = Instant::now();
     let r = loop {
@@ -392,6 +397,18 @@ pub fn commission<P: std::io::Read + Write>(
         "steps: {:.3} V -> {:.4} A, {:.3} V -> {:.4} A, bus {:.2} V",
         r.u_v[0], r.i_a[0], r.u_v[1], r.i_a[1], r.vbus_v
     )?;
+    let l = report.inductance;
+    let (file_open_h, file_closed_h) = (scales.coil_open_s * file_r, scales.coil_closed_s * file_r);
+    writeln!(
+        out,
+        "inductance at the open stop {:.1} uH, at the closed stop {:.1} uH; the file says {:.1} and {:.1} uH ({:+.1} %, {:+.1} %)",
+        1e6 * l.open_h,
+        1e6 * l.closed_h,
+        1e6 * file_open_h,
+        1e6 * file_closed_h,
+        100.0 * (l.open_h / file_open_h - 1.0),
+        100.0 * (l.closed_h / file_closed_h - 1.0)
+    )?;
     let e = report.ends;
     let travel_m = e.closed_m - e.open_m;
     writeln!(
@@ -409,6 +426,11 @@ pub fn commission<P: std::io::Read + Write>(
         1e6 * travel_m,
         1e6 * stroke_m
     )?;
+    if let Some(path) = &args.out {
+        std::fs::write(path, actuator_file(&file, &report)?)
+            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        writeln!(out, "actuator file written: {}", path.display())?;
+    }
     if args.apply {
         link.done(Command::Set {
             name: "coil.resistance_ohm",
@@ -421,6 +443,68 @@ pub fn commission<P: std::io::Read + Write>(
         )?;
     }
     Ok(report)
+}
+
+/// The least iron reluctance an actuator file written from a commissioning keeps, as a
+/// share of the closed gap's total (see [`actuator_file`]).
+const IRON_SHARE: f32 = 0.01;
+
+/// The actuator file a commissioning gives: `file` (the board's) with the measured
+/// resistance and the two inductances (the magnetic circuit in its two-inductance form,
+/// the tuning dropped: it was for another actuator), each measured value and its
+/// uncertainty, and the end stops, in comments at its head.
+///
+/// # Errors
+/// The file does not serialise or does not validate (the board measured values no
+/// actuator can have).
+pub fn actuator_file(file: &ema::actuator::Actuator, report: &Report) -> anyhow::Result<String> {
+    let r = report.resistance;
+    let l = report.inductance;
+    let e = report.ends;
+    let mut a = *file;
+    a.coil.resistance_ohm = r.ohm;
+    // The file's form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the iron's
+    // `rho_0` positive. A real circuit's fringing bends the line (the surface grows with
+    // the gap), and through the two measured points its intercept can fall below zero:
+    // then both are moved, by the same factor in opposite directions, to the nearest line
+    // whose `rho_0` is 1 % of the closed gap's reluctance.
+    let (g_open, g_closed) = (
+        a.mechanics.residual_gap_m + a.mechanics.stroke_m,
+        a.mechanics.residual_gap_m,
+    );
+    let (rho_o, rho_c) = (1.0 / l.open_h, 1.0 / l.closed_h);
+    let q = g_closed / (g_open - g_closed);
+    let intercept = rho_c - (rho_o - rho_c) * q;
+    let moved = if intercept < IRON_SHARE * rho_c {
+        ((1.0 - IRON_SHARE + q) * rho_c / (q * rho_o)).sqrt()
+    } else {
+        1.0
+    };
+    a.magnetics = ema::actuator::Magnetics::Inductance {
+        open_h: l.open_h / moved,
+        closed_h: l.closed_h * moved,
+    };
+    a.tuning = None;
+    a.plant()
+        .map_err(|e| anyhow!("the measured actuator: {e}"))?;
+    let head = format!(
+        "# Commissioned on the board (loop open, armature at rest):\n\
+         #   coil.resistance_ohm = {} +- {} (two standard errors, converter noise)\n\
+         #   inductance at the open stop {} H, at the closed stop {} H (step responses);\n\
+         #   in the file's linear form each moved by {:.2} % (positive iron reluctance)\n\
+         #   position reading at the open stop {} m, at the closed stop {} m +- {} m\n\
+         #   (in the calibration of this file's board.position_span_m)\n\
+         # Tune it before use: hil-sim tune <this file>\n",
+        r.ohm,
+        r.spread_ohm,
+        l.open_h,
+        l.closed_h,
+        100.0 * (moved - 1.0).abs(),
+        e.open_m,
+        e.closed_m,
+        e.spread_m
+    );
+    Ok(head + &toml::to_string(&a)?)
 }
 
 /// A status as the `status` command prints it.

@@ -175,6 +175,44 @@ pub struct Coil {
 }
 
 impl Plan {
+    /// The plan for actuator `a` on a board ticking at `rate_hz`: its coil and armature
+    /// from the file, the readings' delay and noise from the board's converter.
+    ///
+    /// # Errors
+    /// The actuator's time scales do not derive, or the plan's inputs are not positive
+    /// (named by the coil's resistance).
+    pub fn for_actuator(
+        a: &crate::actuator::Actuator,
+        rate_hz: f32,
+    ) -> Result<Self, crate::config::Error> {
+        let r = a.coil.resistance_ohm;
+        let t = a.time_scales()?;
+        // The position's noise at rest: the allowance the detectors use for the
+        // difference of two readings, twice (a window's extremes, not two readings).
+        let still_m = 2.0 * crate::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
+        let coil = Coil {
+            resistance_ohm: r,
+            open_inductance_h: t.coil_open_s * r,
+            closed_inductance_h: t.coil_closed_s * r,
+            rated_a: a.coil.rated_current_a,
+            natural_rad_s: t.natural_rad_s,
+            stroke_m: a.mechanics.stroke_m,
+        };
+        let noise_a = crate::sense::NOISE_RMS_CODES * a.calibration().current.scale;
+        Self::new(
+            &coil,
+            rate_hz,
+            crate::actuator::DELAY_TICKS,
+            still_m,
+            noise_a,
+        )
+        .ok_or(crate::config::Error {
+            param: "coil.resistance_ohm",
+            value: r,
+            reason: crate::config::Reason::NotPositive,
+        })
+    }
+
     /// The plan for the file's `coil`, at `rate_hz`, with readings `delay_ticks` periods
     /// old, a position reading whose noise spans `still_m` at rest and a current reading
     /// of noise `current_noise_a` (RMS). `None` for values that are not positive and finite.

@@ -1273,30 +1273,8 @@ impl Dispatcher {
 
     /// The commissioning plan for the parameters in use.
     fn commission_plan(&self) -> Result<commission::Plan, Refusal<'static>> {
-        let a = &self.params.actuator;
-        let r = a.coil.resistance_ohm;
-        let t = a
-            .time_scales()
-            .map_err(|e| Refusal::Invalid(Invalid::from(e)))?;
-        // The position's noise at rest: the allowance the detectors use for the
-        // difference of two readings, twice (a window's extremes, not two readings).
-        let still_m = 2.0 * crate::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
-        let coil = commission::Coil {
-            resistance_ohm: r,
-            open_inductance_h: t.coil_open_s * r,
-            closed_inductance_h: t.coil_closed_s * r,
-            rated_a: a.coil.rated_current_a,
-            natural_rad_s: t.natural_rad_s,
-            stroke_m: a.mechanics.stroke_m,
-        };
-        commission::Plan::new(
-            &coil,
-            self.board.rate_hz,
-            crate::actuator::DELAY_TICKS,
-            still_m,
-            crate::sense::NOISE_RMS_CODES * a.calibration().current.scale,
-        )
-        .ok_or_else(|| Self::invalid("coil.resistance_ohm", r, crate::config::Reason::NotPositive))
+        commission::Plan::for_actuator(&self.params.actuator, self.board.rate_hz)
+            .map_err(|e| Refusal::Invalid(Invalid::from(e)))
     }
 
     fn invalid(param: &'static str, value: f32, reason: crate::config::Reason) -> Refusal<'static> {

@@ -10,7 +10,7 @@
 //! the true coil current never above the rating, at most 10 s of actuator time.
 
 use ema::bridge::HBridge;
-use ema::commission::{Coil, Identification, Plan, Report, Step};
+use ema::commission::{Identification, Plan, Report, Step};
 use hil_sim::bench::board::scenario;
 use hil_sim::hal::{self, Adc};
 use hil_sim::scenario::Sensors;
@@ -48,24 +48,8 @@ fn commission(
     let (pwm, dir, en, lines) = hal::bridge_io(sc.bridge.max_duty);
     let Ok(mut bridge) = HBridge::new(pwm, dir, en);
     let cfg = sc.controller.build().unwrap();
-    let t = a.time_scales().unwrap();
-    let r = a.coil.resistance_ohm;
     // As the board's dispatcher plans it (`ema::device`).
-    let plan = Plan::new(
-        &Coil {
-            resistance_ohm: r,
-            open_inductance_h: t.coil_open_s * r,
-            closed_inductance_h: t.coil_closed_s * r,
-            rated_a: a.coil.rated_current_a,
-            natural_rad_s: t.natural_rad_s,
-            stroke_m: a.mechanics.stroke_m,
-        },
-        a.board.rate_hz,
-        ema::actuator::DELAY_TICKS,
-        2.0 * ema::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m,
-        ema::sense::NOISE_RMS_CODES * a.calibration().current.scale,
-    )
-    .unwrap();
+    let plan = Plan::for_actuator(&a, a.board.rate_hz).unwrap();
     let mut id = Identification::new(plan);
     let (mut applied, mut peak) = (0.0_f32, 0.0_f64);
     for k in 0..30 * plan.ticks() {

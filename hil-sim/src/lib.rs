@@ -63,6 +63,7 @@ pub mod actuator;
 pub mod bench;
 pub mod catalog;
 pub mod cli;
+pub mod commissioning;
 pub mod compare;
 mod error;
 pub mod faults;

@@ -32,6 +32,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 pub mod actuators;
+pub mod commission;
 pub mod compare;
 pub mod faults;
 pub mod golden;
@@ -77,6 +78,9 @@ pub enum Command {
     Tune(tune::Args),
     /// Runs the fault-injection cases: the fault named, detection time, peak current.
     Faults(faults::Args),
+    /// The board's commissioning routine against plants drawn wider than an actuator's
+    /// file: the identification errors' distribution, its duration and peak current.
+    Commission(commission::Args),
     /// Records the golden traces the emulated Cortex-M4F must reproduce bit for bit.
     Golden(golden::Args),
     /// Runs every result table (paper, laws compared, family, Monte Carlo, faults) and
@@ -151,6 +155,7 @@ pub fn dispatch(cli: Cli, out: &mut dyn Write) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Faults(a) => faults::run(&a, out).map(drop),
+        Command::Commission(a) => commission::run(&a, out),
         Command::Golden(a) => golden::run(&a, out).map(drop),
         Command::Results(a) => results::run(&a, out).map(drop),
     }

@@ -1,0 +1,127 @@
+//! `hil-sim commission <name> [--n N --seed S]`: the board's commissioning routine on an
+//! actuator's file against N plants drawn wider than it (see
+//! [`crate::commissioning::Draw`]), in parallel: the identification errors' median, 99th
+//! percentile and maximum, the actuator time, the largest coil current, the endings.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+
+use rand::SeedableRng;
+use rayon::prelude::*;
+
+use crate::actuator;
+use crate::commissioning::{self, Draw};
+use crate::report::{sig, Table};
+
+/// Arguments of `commission`.
+#[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
+pub struct Args {
+    /// A family member's name or an actuator file.
+    pub actuator: String,
+    /// Plants drawn.
+    #[arg(long, default_value_t = 1000)]
+    pub n: usize,
+    /// Seed of the draws (draw k from seed + k).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// The quantities judged, with their targets.
+const QUANTITIES: [(&str, f64); 5] = [
+    ("resistance error [%]", 2.0),
+    ("inductance error, open stop [%]", 5.0),
+    ("inductance error, closed stop [%]", 5.0),
+    ("open stop reading error [codes]", 2.0),
+    ("closed stop reading error [codes]", 2.0),
+];
+
+/// Runs the draws and prints the table.
+///
+/// # Errors
+/// An unknown actuator; a failed write.
+pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
+    let (name, a) = actuator::load(&args.actuator)?;
+    let outcomes = (0..args.n)
+        .into_par_iter()
+        .map(|k| {
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(args.seed.wrapping_add(k as u64));
+            commissioning::run(&a, Some(&Draw::new(&mut rng)))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let rated = f64::from(a.coil.rated_current_a);
+    let mut endings: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut errors: Vec<[f64; 5]> = Vec::new();
+    for o in &outcomes {
+        match (o.report, o.errors()) {
+            (Ok(_), Some(e)) => errors.push(e),
+            (Err(abort), _) => *endings.entry(abort.name()).or_default() += 1,
+            (Ok(_), None) => {}
+        }
+    }
+    writeln!(
+        out,
+        "{name}: {} plants drawn wider than the file (seed {}): surfaces, R, K, m +-30 %, an unknown preload, friction +-50 %, sensor offset and gain +-3 %",
+        args.n, args.seed
+    )?;
+    let mut t = Table::new([
+        "quantity",
+        "median",
+        "99th percentile",
+        "max",
+        "target",
+        "over it",
+    ]);
+    let stats = |mut v: Vec<f64>| -> [f64; 3] {
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| {
+            v.get(((v.len() as f64 - 1.0) * q).round() as usize)
+                .copied()
+        };
+        [at(0.5), at(0.99), v.last().copied()].map(|x| x.unwrap_or(f64::NAN))
+    };
+    for (i, (what, target)) in QUANTITIES.iter().enumerate() {
+        let scale = if i < 3 { 100.0 } else { 1.0 };
+        let v: Vec<f64> = errors.iter().map(|e| scale * e[i].abs()).collect();
+        let over = v.iter().filter(|x| **x > *target).count();
+        let [m, p, x] = stats(v);
+        t.push([
+            (*what).to_owned(),
+            sig(m, 3),
+            sig(p, 3),
+            sig(x, 3),
+            sig(*target, 2),
+            over.to_string(),
+        ]);
+    }
+    let took: Vec<f64> = outcomes.iter().map(|o| o.took_s).collect();
+    let peak: Vec<f64> = outcomes.iter().map(|o| 100.0 * o.peak_a / rated).collect();
+    for (what, v, target) in [
+        ("actuator time [s]", took, 10.0),
+        ("largest coil current [% of the rating]", peak, 100.0),
+    ] {
+        let over = v.iter().filter(|x| **x > target).count();
+        let [m, p, x] = stats(v);
+        t.push([
+            what.to_owned(),
+            sig(m, 3),
+            sig(p, 3),
+            sig(x, 3),
+            sig(target, 3),
+            over.to_string(),
+        ]);
+    }
+    write!(out, "{}", t.to_text())?;
+    let endings: Vec<String> = endings.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    writeln!(
+        out,
+        "commissioned: {} of {}; stopped: {}",
+        errors.len(),
+        args.n,
+        if endings.is_empty() {
+            "none".to_owned()
+        } else {
+            endings.join(", ")
+        }
+    )?;
+    Ok(())
+}

@@ -209,7 +209,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
         // Faults whose time has come (a period's worth of slack for the f64 clock).
         while let Some(f) = faults.next_if(|f| f.at_s <= now.t_s + 1e-9) {
             match f.fault {
-                Injected::CoilOpen => stepper.open_coil(),
+                Injected::CoilOpen => stepper.set_coil_open(true),
                 Injected::CoilShort { resistance_ohm } => {
                     stepper.set_resistance_ohm(resistance_ohm)
                 }
@@ -469,12 +469,6 @@ impl Stepper {
         })
     }
 
-    /// Opens the coil circuit (an injected fault): from now on no current flows, whatever
-    /// the bridge applies.
-    pub fn open_coil(&mut self) {
-        self.set_coil_open(true);
-    }
-
     /// Jams the armature where it is (a foreign body, a seized guide), or frees it.
     pub fn set_jammed(&mut self, jammed: bool) {
         self.jammed = jammed;
@@ -483,7 +477,8 @@ impl Stepper {
         }
     }
 
-    /// Opens the coil circuit, or closes it again.
+    /// Opens the coil circuit (an injected fault: from then on no current flows, whatever
+    /// the bridge applies), or closes it again.
     pub fn set_coil_open(&mut self, open: bool) {
         self.coil_open = open;
         if open {

@@ -15,51 +15,64 @@
 //!    [`SPREAD`] around the file), then average the applied voltage and the measured
 //!    current over [`AVERAGE_TIME_CONSTANTS`] of them (at least [`MIN_AVERAGE_S`]);
 //! 3. `R = (u2 - u1) / (i2 - i1)`. The difference removes what is constant in both steps:
-//!    the current sensor's residual offset and the bridge's voltage drops. At steady state
-//!    the armature is at rest wherever the force left it, so no back-EMF enters.
+//!    the current sensor's residual offset and the bridge's voltage drops.
+//!
+//! These first two steps set every later voltage only. Their pull may leave the armature
+//! floating between the stops, and a lightly damped one rings there for seconds (a valve
+//! with a damping ratio of 0.02): a window in which the position moves more than its noise
+//! is averaged again for at most [`PATIENCE_PERIODS`] of the slowest mechanical period,
+//! then taken as it is (the ringing's back-EMF averages out to a fraction of a per cent).
+//! The resistance reported is measured the same way at the closed stop (below), where the
+//! pull presses the armature against the stop and nothing moves.
 //!
 //! The uncertainty reported is two standard errors of that quotient from the spread of the
-//! averaged currents: the converter's noise only, not what a slow residual motion of the
-//! armature leaves (a window in which the position moves more than its noise is averaged
-//! again, for at most [`PATIENCE_PERIODS`] of the slowest mechanical period). The step is abandoned, with its reason, when the current exceeds the
-//! rating (a coil far below the file's resistance) or the currents of the two steps do not
-//! differ (an open coil); a fault, a disarm or any other order also ends it.
+//! averaged currents. The identification is abandoned, with its reason, when the current
+//! exceeds the rating (a coil far below the file's resistance) or the currents of the two
+//! steps do not differ (an open coil); a fault, a disarm or any other order also ends it.
 //!
 //! # The end stops
 //!
 //! A position sensor carries an offset and a gain error of a few per cent of the stroke,
 //! which no controller acting on its reading removes. The readings at the two stops fix
-//! both. Still with the loop open, and with the voltages now set from the measured
-//! resistance, so that the current stays below the rating whatever the file said:
+//! both. Still with the loop open, and with the voltages now set from the first two
+//! steps' resistance, so that the current stays below the rating whatever the file said:
 //!
 //! 1. **open stop**: the coil off; once the armature has come back and rests (the wait is
 //!    [`RELEASE_PERIODS`] of the slowest mechanical period the identification admits,
 //!    `2 pi / w_n` with the spring and the mass [`SPREAD`] off the file), the reading is
 //!    averaged over a window in which it stays still;
 //! 2. **approach**: the voltage ramps over [`RAMP_PERIODS`] mechanical periods to the one
-//!    that holds [`NEAR_SHARE`] of the rated current, slowly against the coil's and the
+//!    that holds [`FULL_SHARE`] of the rated current, slowly against the coil's and the
 //!    armature's time constants: the current follows the ramp, the magnet pulls the
 //!    armature over to the closed stop, the coil's back-EMF damping the last, unstable
 //!    part of the travel (the magnet's stiffness exceeds the spring's near the stop);
-//! 3. **closed stop**: the reading is averaged at [`NEAR_SHARE`] and again at
-//!    [`FULL_SHARE`] of the rated current. An armature against the stop does not move
-//!    when the pull grows; one that moved between the two was held by its spring short
-//!    of the stop, which the rated current then cannot reach.
+//! 3. **closed stop**: the reading is averaged at [`FULL_SHARE`] and again at
+//!    [`NEAR_SHARE`] of the rated current. An armature pressed against the stop stays
+//!    when the pull falls (the pull grows steeply as the gap closes); one that moved
+//!    between the two was held by its spring short of the stop, which the rated current
+//!    then cannot reach;
+//! 4. **resistance**: from the two holds' voltages and currents, as from the first two
+//!    steps, the armature pressed against the stop.
 //!
 //! The coil's inductance is measured at both stops too, with the armature still: at the
-//! open stop from a probe that steps the current from [`PROBE_SHARE`] of the rating to
-//! [`PROBE_HIGH_SHARE`] and back (a pull small enough to leave the armature near its
-//! stop), at the closed stop from the step from [`FULL_SHARE`] back to [`NEAR_SHARE`].
-//! Each step goes back to a level measured just before, `i_end`; sampled at the same
-//! point of every PWM period whatever the ripple, the current then decays geometrically,
-//! `i(k+1) - i_end = a (i(k) - i_end)` with `a = exp(-Ts R / L)`. `a` is fitted by least
-//! squares over the readings the converter's delay lets answer the step, while the current
-//! is more than [`FLOOR_SIGMAS`] noise deviations from its end (the converter's noise,
-//! measured over the hold's window, taken out of the regressor's sum), and
-//! `L = -Ts R / ln a` with the measured `R`. The probe's pull moves the armature a little
-//! off the open stop (the end stops calibrate how far); `1/L` being linear in the gap,
-//! the line through the probe's and the closed stop's values gives the open stop's. The
-//! two inductances are the magnetic circuit's two-inductance form in the actuator file.
+//! open stop from a probe that steps the current between two small levels
+//! ([`Plan::probe_a`]: [`PROBE_HIGH_SHARE`] of the rating, or less where the file's
+//! spring is soft against its magnet, [`PROBE_PULL_SHARE`]), at the closed stop from the
+//! step from [`FULL_SHARE`] down to [`NEAR_SHARE`]. Each step goes to a level `i_end`
+//! measured in a hold's window (the closed stop's after the step: the fit's sums are
+//! linear in `i_end`, so it enters once known); sampled at the same point of every PWM period whatever the
+//! ripple, the current then decays geometrically, `y(k+1) = a y(k)` with
+//! `y = i - i_end` and `a = exp(-Ts R / L)`. `a` is the ratio of two weighted sums of the
+//! readings the converter's delay lets answer the step, `sum w y(k+1) / sum w y(k)`, the
+//! weights falling as the file's coil would ([`Plan::guess_factor`], down to
+//! [`FIT_WEIGHT_FLOOR`]): both sums are linear in the readings, so the converter's noise
+//! does not bias their ratio (a least squares on `y(k)` itself, whose regressor carries
+//! that noise, read a soft-sprung plunger's small probe 6 % high). `L = -Ts R / ln a`
+//! with the resistance from the closed stop. The probe's pull moves the armature a little
+//! off the open stop (the end stops calibrate how far, from its position averaged over
+//! the probe's cycle); `1/L` being linear in the gap, the line through the probe's and
+//! the closed stop's values gives the open stop's. The two inductances are the magnetic
+//! circuit's two-inductance form in the actuator file.
 //!
 //! The travel between the two readings must be positive (else the sensor is wired
 //! backwards) and at least [`MIN_TRAVEL_SHARE`] of the stroke (else the armature is stuck,
@@ -95,25 +108,33 @@ pub const PATIENCE_PERIODS: f32 = 4.0;
 pub const RELEASE_PERIODS: f32 = 0.5;
 /// Slowest mechanical periods the approach's voltage ramp lasts.
 pub const RAMP_PERIODS: f32 = 0.5;
-/// Share of the rated current (at the measured resistance) the approach ends at.
-pub const NEAR_SHARE: f32 = 0.75;
-/// Share of the rated current of the last hold at the closed stop: the pull grows by
-/// `(FULL / NEAR)^2`, 60 %, and an armature against the stop does not move.
+/// Share of the rated current (at the first two steps' resistance) the approach ends at
+/// and the first hold at the closed stop holds.
 pub const FULL_SHARE: f32 = 0.95;
-/// Share of the rated current of the inductance probe's lower level at the open stop.
-pub const PROBE_SHARE: f32 = 0.05;
-/// Share of the rated current of the probe's upper level: the step back from it is the
-/// one fitted, large for many readings above the noise, small for a pull (4 % of the
-/// rated one) that leaves the armature near its stop.
+/// Share of the rated current of the second hold at the closed stop: the pull falls by
+/// `1 - (NEAR / FULL)^2`, 38 %, and an armature pressed against the stop does not move
+/// (the magnet's pull grows steeply as the gap closes), while one the spring held short
+/// of the stop moves back.
+pub const NEAR_SHARE: f32 = 0.75;
+/// Largest share of the rated current of the inductance probe's upper level at the open
+/// stop: the steps from it and back are fitted, large for many readings above the noise,
+/// small for a pull (4 % of the rated one) that leaves the armature near its stop.
 pub const PROBE_HIGH_SHARE: f32 = 0.2;
+/// The probe's lower level, as a share of its upper one: the coil stays driven, and the
+/// step down is three quarters of the upper level.
+pub const PROBE_LOW_PER_HIGH: f32 = 0.25;
+/// Largest pull of the probe's upper level at the open stop, as a share of the spring's
+/// force over the stroke, for the weakest spring and the strongest magnet within
+/// [`SPREAD`] of the file: a soft spring would let the rated share pull the armature in.
+pub const PROBE_PULL_SHARE: f32 = 0.1;
 /// Readings per time constant at the open stop the probe's cycles gather together (a
 /// coil faster than the period gives few per step).
 pub const PROBE_READINGS: f32 = 32.0;
 /// Most cycles of the probe.
 pub const MAX_PROBE_CYCLES: u32 = 16;
-/// Noise standard deviations a current must be from its end for its reading to enter a
-/// step-response fit.
-pub const FLOOR_SIGMAS: f32 = 6.0;
+/// A step-response fit ends where the file's coil would have decayed to this share of
+/// the step (e^-6: six of its time constants).
+pub const FIT_WEIGHT_FLOOR: f32 = 0.0025;
 /// Least travel between the stops, as a share of the file's stroke.
 pub const MIN_TRAVEL_SHARE: f32 = 0.5;
 
@@ -133,10 +154,9 @@ pub struct Plan {
     /// Readings after a voltage step that may still be conversions from before it (the
     /// converter's delay).
     pub skip_readings: u32,
-    /// A step response is fitted while the current is at least this far from its end
-    /// \[A\] ([`FLOOR_SIGMAS`] times the current reading's noise): below it a reading
-    /// carries more noise than decay.
-    pub floor_a: f32,
+    /// The file's coil's current decay factor per period, `exp(-Ts R / L)`, at the open
+    /// and at the closed stop: the step-response fits' weights.
+    pub guess_factor: [f32; 2],
     /// Largest spread of the position readings over a window with the armature at rest
     /// \[m\] (the sensor's noise): a wider one restarts the window.
     pub still_m: f32,
@@ -153,6 +173,10 @@ pub struct Plan {
     /// Cycles of the probe: enough for [`PROBE_READINGS`] readings per time constant at
     /// the open stop, at most [`MAX_PROBE_CYCLES`].
     pub probe_cycles: u32,
+    /// The probe's two currents, lower and upper \[A\]: [`PROBE_HIGH_SHARE`] of the
+    /// rating, or less where [`PROBE_PULL_SHARE`] asks it; the lower
+    /// [`PROBE_LOW_PER_HIGH`] of the upper.
+    pub probe_a: [f32; 2],
     /// The file's stroke \[m\].
     pub stroke_m: f32,
 }
@@ -172,6 +196,10 @@ pub struct Coil {
     pub natural_rad_s: f32,
     /// Stroke \[m\].
     pub stroke_m: f32,
+    /// Spring rate \[N/m\].
+    pub spring_n_per_m: f32,
+    /// The magnet's force coefficient at the open stop, `F = mu i^2 / 2` \[H/m\].
+    pub open_force_h_per_m: f32,
 }
 
 impl Plan {
@@ -187,6 +215,11 @@ impl Plan {
     ) -> Result<Self, crate::config::Error> {
         let r = a.coil.resistance_ohm;
         let t = a.time_scales()?;
+        let plant = a.plant()?;
+        let open_force_h_per_m = plant
+            .envelope()?
+            .nominal()
+            .force_coefficient_h_per_m(plant.gap_m(0.0));
         // The position's noise at rest: the allowance the detectors use for the
         // difference of two readings, twice (a window's extremes, not two readings).
         let still_m = 2.0 * crate::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
@@ -197,33 +230,23 @@ impl Plan {
             rated_a: a.coil.rated_current_a,
             natural_rad_s: t.natural_rad_s,
             stroke_m: a.mechanics.stroke_m,
+            spring_n_per_m: a.mechanics.spring_n_per_m,
+            open_force_h_per_m,
         };
-        let noise_a = crate::sense::NOISE_RMS_CODES * a.calibration().current.scale;
-        Self::new(
-            &coil,
-            rate_hz,
-            crate::actuator::DELAY_TICKS,
-            still_m,
-            noise_a,
+        Self::new(&coil, rate_hz, crate::actuator::DELAY_TICKS, still_m).ok_or(
+            crate::config::Error {
+                param: "coil.resistance_ohm",
+                value: r,
+                reason: crate::config::Reason::NotPositive,
+            },
         )
-        .ok_or(crate::config::Error {
-            param: "coil.resistance_ohm",
-            value: r,
-            reason: crate::config::Reason::NotPositive,
-        })
     }
 
     /// The plan for the file's `coil`, at `rate_hz`, with readings `delay_ticks` periods
-    /// old, a position reading whose noise spans `still_m` at rest and a current reading
-    /// of noise `current_noise_a` (RMS). `None` for values that are not positive and finite.
+    /// old and a position reading whose noise spans `still_m` at rest. `None` for values
+    /// that are not positive and finite.
     #[must_use]
-    pub fn new(
-        coil: &Coil,
-        rate_hz: f32,
-        delay_ticks: u8,
-        still_m: f32,
-        current_noise_a: f32,
-    ) -> Option<Self> {
+    pub fn new(coil: &Coil, rate_hz: f32, delay_ticks: u8, still_m: f32) -> Option<Self> {
         let Coil {
             resistance_ohm,
             open_inductance_h,
@@ -231,6 +254,8 @@ impl Plan {
             rated_a,
             natural_rad_s,
             stroke_m,
+            spring_n_per_m,
+            open_force_h_per_m,
         } = *coil;
         let positive = |v: f32| v.is_finite() && v > 0.0;
         if !(positive(resistance_ohm)
@@ -239,9 +264,10 @@ impl Plan {
             && positive(rated_a)
             && positive(natural_rad_s)
             && positive(stroke_m)
+            && positive(spring_n_per_m)
+            && positive(open_force_h_per_m)
             && positive(rate_hz)
-            && positive(still_m)
-            && positive(current_noise_a))
+            && positive(still_m))
         {
             return None;
         }
@@ -251,6 +277,12 @@ impl Plan {
         let slowest_s = closed_inductance_h * (1.0 + SPREAD) / (resistance_ohm * (1.0 - SPREAD));
         let slowest_open_s = open_inductance_h * (1.0 + SPREAD) / (resistance_ohm * (1.0 - SPREAD));
         let settle_s = SETTLE_TIME_CONSTANTS * slowest_s;
+        // The weakest spring's force over the stroke against the strongest magnet's pull.
+        let pull_a = math::sqrt(
+            2.0 * PROBE_PULL_SHARE * spring_n_per_m * (1.0 - SPREAD) * stroke_m
+                / (open_force_h_per_m * (1.0 + SPREAD)),
+        );
+        let probe_high_a = math::min(PROBE_HIGH_SHARE * rated_a, pull_a);
         let ticks = |s: f32| {
             let t = libm::ceilf(s * rate_hz);
             if (1.0..1e9).contains(&t) {
@@ -271,7 +303,8 @@ impl Plan {
             abort_a: rated_a,
             period_s: 1.0 / rate_hz,
             skip_readings: u32::from(delay_ticks) + 1,
-            floor_a: FLOOR_SIGMAS * current_noise_a,
+            guess_factor: [open_inductance_h, closed_inductance_h]
+                .map(|h| libm::expf(-resistance_ohm / (h * rate_hz))),
             still_m,
             release_ticks: ticks(RELEASE_PERIODS * period_s + settle_s)?,
             ramp_ticks: ticks(RAMP_PERIODS * period_s)?,
@@ -285,6 +318,7 @@ impl Plan {
                 let c = math::min(math::max(c, 1.0), MAX_PROBE_CYCLES as f32) as u32;
                 c
             },
+            probe_a: [PROBE_LOW_PER_HIGH * probe_high_a, probe_high_a],
             stroke_m,
         })
     }
@@ -295,9 +329,9 @@ impl Plan {
         self.probe_cycles.saturating_mul(2).saturating_sub(1)
     }
 
-    /// Ticks the whole identification takes when no window restarts: the resistance's
-    /// two steps, the probe's cycles and the step back at the closed stop; the open stop,
-    /// the probe's two levels, the approach and the two holds at the closed stop.
+    /// Ticks the whole identification takes when no window restarts: the first two
+    /// steps, the probe's cycles; the open stop, the probe's two levels, the approach and
+    /// the two holds at the closed stop.
     #[must_use]
     pub const fn ticks(&self) -> u64 {
         let window = self.average_ticks as u64;
@@ -306,7 +340,7 @@ impl Plan {
         let cycle = (self.probe_half_ticks as u64)
             .saturating_mul(self.probe_halves() as u64)
             .saturating_add(window);
-        step.saturating_mul(3)
+        step.saturating_mul(2)
             .saturating_add(cycle)
             .saturating_add(hold.saturating_mul(5))
             .saturating_add(self.ramp_ticks as u64)
@@ -409,47 +443,64 @@ pub struct Report {
 }
 
 /// A current's response to a voltage step towards a level measured before, the armature
-/// still: `y(k) = i(k) - i_end` obeys `y(k+1) = a y(k)`; sums for the least-squares fit
-/// of `a`, from the first reading the converter's delay lets answer the step.
+/// still: `y(k) = i(k) - i_end` obeys `y(k+1) = a y(k)`. `a` is estimated with an
+/// instrument, `a = sum w(k) y(k+1) / sum w(k) y(k)`, the weight `w(k) = +-g^k` falling
+/// as the file's coil would (`g`, its factor per period) from the first reading the
+/// converter's delay lets answer the step. Numerator and denominator are linear in the
+/// readings, so their noise (zero mean) does not bias the ratio as it biases a least
+/// squares on `y(k)` itself (whose regressor's noise variance the small probe's readings
+/// are comparable with); the weight's guess only costs efficiency, not accuracy.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Decay {
     /// The level the current settles at \[A\] (`NaN`: no fit in this phase).
     end_a: f32,
     /// Readings since the step (`u32::MAX`: the step has not come yet).
     since: u32,
-    /// The last deviation \[A\] (`NaN`: the fit has ended).
+    /// The last deviation \[A\].
     last: f32,
-    n: u32,
+    /// The weight of the next pair (0: this step's fit has ended).
+    weight: f32,
+    /// Sign of the step's deviation: `+1` for a step down, `-1` for a step up.
+    sign: f32,
+    /// The file's coil's factor per period, the weight's decay.
+    guess: f32,
     sxy: f32,
     sxx: f32,
+    /// Sum of the weights: the deviations' sums for an end other than `end_a`.
+    sw: f32,
 }
 
 impl Decay {
-    const NONE: Self = Self::towards(f32::NAN);
+    const NONE: Self = Self::towards(f32::NAN, 1.0, 0.0);
 
-    const fn towards(end_a: f32) -> Self {
+    const fn towards(end_a: f32, sign: f32, guess: f32) -> Self {
         Self {
             end_a,
             since: u32::MAX,
             last: 0.0,
-            n: 0,
+            weight: sign,
+            sign,
+            guess,
             sxy: 0.0,
             sxx: 0.0,
+            sw: 0.0,
         }
     }
 
-    /// The next step goes to `end_a`; the sums so far are kept.
-    fn retarget(&mut self, end_a: f32) {
+    /// The next step goes to `end_a`, down for `sign` `+1`, up for `-1`; the sums so far
+    /// are kept.
+    fn retarget(&mut self, end_a: f32, sign: f32) {
         self.end_a = end_a;
         self.since = u32::MAX;
-        self.last = 0.0;
+        self.weight = sign;
+        self.sign = sign;
     }
 
     /// A reading `i_a`; `stepped`: the voltage over the period it ends differs from the
     /// one before; `skip`: readings after the step that may still be the converter's
-    /// earlier conversions; `floor_a`: the fit ends once the current is nearer its end.
-    fn add(&mut self, i_a: f32, stepped: bool, skip: u32, floor_a: f32) {
-        if self.end_a.is_nan() || self.last.is_nan() {
+    /// earlier conversions.
+    fn add(&mut self, i_a: f32, stepped: bool, skip: u32) {
+        if self.end_a.is_nan() || self.weight == 0.0 {
             return;
         }
         if self.since == u32::MAX {
@@ -465,22 +516,22 @@ impl Decay {
         }
         let y = i_a - self.end_a;
         if self.since > skip {
-            if self.last.abs() < floor_a {
-                // Settled: the rest is noise (`NaN` ends the fit).
-                self.last = f32::NAN;
-                return;
+            self.sxy += self.weight * y;
+            self.sxx += self.weight * self.last;
+            self.sw += self.weight;
+            self.weight *= self.guess;
+            if self.weight.abs() < FIT_WEIGHT_FLOOR {
+                // The file's coil would have settled: the rest is noise.
+                self.weight = 0.0;
             }
-            self.n = self.n.saturating_add(1);
-            self.sxy += self.last * y;
-            self.sxx += self.last * self.last;
         }
         self.last = y;
     }
 
-    /// The factor per period `a`, the readings' noise variance `noise_a2` taken out of
-    /// the regressor's sum; `None` unless `0 < a < 1`.
-    fn factor(&self, noise_a2: f32) -> Option<f32> {
-        let a = self.sxy / (self.sxx - self.n as f32 * noise_a2);
+    /// The factor per period `a`, the current's end `shift_a` from `end_a` (the sums are
+    /// linear in it); `None` unless `0 < a < 1`.
+    fn factor(&self, shift_a: f32) -> Option<f32> {
+        let a = (self.sxy - shift_a * self.sw) / (self.sxx - shift_a * self.sw);
         (a > 0.0 && a < 1.0).then_some(a)
     }
 }
@@ -570,11 +621,27 @@ impl Window {
     fn position(&self) -> (f32, f32) {
         self.x.mean(self.n())
     }
+}
 
-    /// The current readings' variance (one reading's, not the mean's) \[A^2\].
-    fn current_noise(&self) -> f32 {
-        self.i.mean(self.n()).1 * self.n()
+/// The resistance from two holds' windows, `expected_a` the difference of their currents
+/// the plan aims at; [`Abort::NoResponse`] when less than a tenth of it answers.
+fn resistance(first: &Window, second: &Window, expected_a: f32) -> Result<Resistance, Abort> {
+    let (u1, i1, var1) = first.current();
+    let (u2, i2, var2) = second.current();
+    let di = i2 - i1;
+    if di.is_nan() || di <= 0.1 * expected_a {
+        return Err(Abort::NoResponse);
     }
+    let ohm = (u2 - u1) / di;
+    let spread_ohm = 2.0 * ohm * math::sqrt(var1 + var2) / di;
+    let n = first.n.saturating_add(second.n).max(1) as f32;
+    Ok(Resistance {
+        ohm,
+        spread_ohm,
+        i_a: [i1, i2],
+        u_v: [u1, u2],
+        vbus_v: (first.vbus + second.vbus) / n,
+    })
 }
 
 /// What the identification asks of the bridge at one tick.
@@ -605,11 +672,34 @@ enum Phase {
     /// The voltage ramp towards the closed stop.
     Ramp,
     /// The first hold at the closed stop.
-    Near,
-    /// The second.
     Full,
-    /// Back to the first hold's level: the step response fitted.
-    Back,
+    /// The second, a step down from the first: its response fitted.
+    Near,
+}
+
+/// How much a hold's window needs the armature at rest.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Rest {
+    /// Its mean position is a stop's: a window in which the armature moved is averaged
+    /// again, for at most [`Plan::patience_ticks`], then the identification gives up.
+    Required,
+    /// At rest if it comes within the patience, else the window is taken as it is: the
+    /// first two steps' resistance only sets the later voltages, and a lightly damped
+    /// armature ringing about the pull's equilibrium leaves a back-EMF that averages out.
+    Preferred,
+    /// The window measures the current only (its level, its noise); the probe's position
+    /// is averaged over its cycle, where its inductance is fitted.
+    Any,
+}
+
+impl Phase {
+    const fn rest(self) -> Rest {
+        match self {
+            Phase::Open | Phase::Near | Phase::Full => Rest::Required,
+            Phase::Low | Phase::High => Rest::Preferred,
+            Phase::ProbeLow | Phase::ProbeHigh | Phase::ProbeCycle | Phase::Ramp => Rest::Any,
+        }
+    }
 }
 
 /// Indices of the windows an identification keeps.
@@ -633,12 +723,14 @@ pub struct Identification {
     resistance: Resistance,
     /// The step response being fitted.
     decay: Decay,
-    /// The inductance at the probe's position near the open stop \[H\].
-    probe_h: f32,
+    /// The coil's time constant at the probe's position near the open stop \[s\].
+    probe_s: f32,
     /// The current at the probe's lower level \[A\].
     probe_end_a: f32,
     /// The voltage over the period the last reading ended \[V\].
     previous_v: f32,
+    /// The readings over the probe's cycle, where its inductance is fitted.
+    cycle: Window,
 }
 
 impl Identification {
@@ -660,9 +752,10 @@ impl Identification {
                 vbus_v: 0.0,
             },
             decay: Decay::NONE,
-            probe_h: 0.0,
+            probe_s: 0.0,
             probe_end_a: 0.0,
             previous_v: 0.0,
+            cycle: Window::EMPTY,
         }
     }
 
@@ -672,9 +765,15 @@ impl Identification {
         &self.plan
     }
 
-    /// The voltage of a share of the rated current at the measured resistance \[V\].
+    /// The voltage of a share of the rated current at the resistance the first two steps
+    /// measured \[V\].
     fn share_v(&self, share: f32) -> f32 {
-        share * self.plan.abort_a * self.resistance.ohm
+        self.current_v(share * self.plan.abort_a)
+    }
+
+    /// The voltage of current `i_a` at the resistance the first two steps measured \[V\].
+    fn current_v(&self, i_a: f32) -> f32 {
+        i_a * self.resistance.ohm
     }
 
     /// The phase's drive \[V\] and the ticks it waits before its window.
@@ -685,21 +784,20 @@ impl Identification {
             Phase::High => (p.u_v[1], p.settle_ticks),
             Phase::Open => (0.0, p.release_ticks),
             // The probe's pull moves the armature: its levels wait as the open stop does.
-            Phase::ProbeLow => (self.share_v(PROBE_SHARE), p.release_ticks),
-            Phase::ProbeHigh => (self.share_v(PROBE_HIGH_SHARE), p.release_ticks),
+            Phase::ProbeLow => (self.current_v(p.probe_a[0]), p.release_ticks),
+            Phase::ProbeHigh => (self.current_v(p.probe_a[1]), p.release_ticks),
             Phase::ProbeCycle => {
                 let wait = p.probe_half_ticks.saturating_mul(p.probe_halves());
                 let high = self.tick < wait && self.probe_high(self.tick);
-                let share = if high { PROBE_HIGH_SHARE } else { PROBE_SHARE };
-                (self.share_v(share), wait)
+                let [low_a, high_a] = p.probe_a;
+                (self.current_v(if high { high_a } else { low_a }), wait)
             }
             Phase::Ramp => {
                 let done = self.tick as f32 / p.ramp_ticks.max(1) as f32;
-                (self.share_v(NEAR_SHARE) * done, p.ramp_ticks)
+                (self.share_v(FULL_SHARE) * done, p.ramp_ticks)
             }
-            Phase::Near => (self.share_v(NEAR_SHARE), p.release_ticks),
             Phase::Full => (self.share_v(FULL_SHARE), p.release_ticks),
-            Phase::Back => (self.share_v(NEAR_SHARE), p.settle_ticks),
+            Phase::Near => (self.share_v(NEAR_SHARE), p.release_ticks),
         }
     }
 
@@ -714,10 +812,14 @@ impl Identification {
         self.tick = 0;
         self.restarts = 0;
         self.window = Window::EMPTY;
-        // The steps back go to a level measured before: the fit's end.
         self.decay = match phase {
-            Phase::ProbeCycle => Decay::towards(self.probe_end_a),
-            Phase::Back => Decay::towards(self.kept[NEAR].current().1),
+            // The probe's steps go to levels measured before.
+            Phase::ProbeCycle => Decay::towards(self.probe_end_a, 1.0, self.plan.guess_factor[0]),
+            // This step's end is the hold's own window, measured after it: the fit takes
+            // deviations from the level before and shifts them once it is known.
+            Phase::Near => {
+                Decay::towards(self.kept[FULL].current().1, 1.0, self.plan.guess_factor[1])
+            }
             _ => Decay::NONE,
         };
     }
@@ -739,9 +841,12 @@ impl Identification {
         self.tick = self.tick.saturating_add(1);
         let stepped = applied_v != core::mem::replace(&mut self.previous_v, applied_v);
         if self.tick <= wait {
+            if self.phase == Phase::ProbeCycle {
+                self.cycle.add(applied_v, m);
+            }
             // A step's response, over the wait (as long as the slowest coil needs).
             let p = &self.plan;
-            self.decay.add(m.i_a, stepped, p.skip_readings, p.floor_a);
+            self.decay.add(m.i_a, stepped, p.skip_readings);
             if self.phase == Phase::ProbeCycle
                 && self.tick < wait
                 && self.tick.is_multiple_of(p.probe_half_ticks)
@@ -749,12 +854,16 @@ impl Identification {
                 // The drive changes level now: the next step goes to the other one.
                 let (low_a, high_a) = (self.probe_end_a, self.kept[PROBE].current().1);
                 let high = self.probe_high(self.tick);
-                self.decay.retarget(if high { high_a } else { low_a });
+                if high {
+                    self.decay.retarget(high_a, -1.0);
+                } else {
+                    self.decay.retarget(low_a, 1.0);
+                }
             }
         }
         if self.phase == Phase::Ramp {
             if self.tick >= wait {
-                self.enter(Phase::Near);
+                self.enter(Phase::Full);
             }
         } else {
             if self.tick > wait {
@@ -764,18 +873,18 @@ impl Identification {
                 self.window.add(applied_v, m);
             }
             if self.tick > wait.saturating_add(self.plan.average_ticks) {
-                // The steps back measure the current's noise over their windows: an
-                // armature that drifts back meanwhile does not matter there.
-                let measures_at_rest = !matches!(self.phase, Phase::ProbeCycle | Phase::Back);
-                if measures_at_rest && self.window.x_max - self.window.x_min > self.plan.still_m {
+                let moved = self.window.x_max - self.window.x_min > self.plan.still_m;
+                let rest = self.phase.rest();
+                let patient = self.restarts.saturating_add(self.plan.average_ticks)
+                    <= self.plan.patience_ticks;
+                if moved && rest != Rest::Any && patient {
                     // The armature moved during the window: its motion induced a
                     // voltage, and its mean is no stop's. Average again from here.
                     self.restarts = self.restarts.saturating_add(self.plan.average_ticks);
-                    if self.restarts > self.plan.patience_ticks {
-                        return Step::Done(Err(Abort::NotAtRest));
-                    }
                     self.window = Window::EMPTY;
                     self.tick = wait;
+                } else if moved && rest == Rest::Required {
+                    return Step::Done(Err(Abort::NotAtRest));
                 } else if let Some(done) = self.finish() {
                     return Step::Done(done);
                 }
@@ -793,7 +902,11 @@ impl Identification {
                 Phase::High
             }
             Phase::High => {
-                match self.resistance(&window) {
+                match resistance(
+                    &self.kept[0],
+                    &window,
+                    (HIGH_SHARE - LOW_SHARE) * self.plan.abort_a,
+                ) {
                     Ok(r) => self.resistance = r,
                     Err(a) => return Some(Err(a)),
                 }
@@ -811,60 +924,38 @@ impl Identification {
                 self.kept[PROBE] = window;
                 Phase::ProbeCycle
             }
-            Phase::ProbeCycle => match self.inductance(&window) {
-                Some(h) => {
-                    self.probe_h = h;
+            Phase::ProbeCycle => match self.time_constant(0.0) {
+                Some(s) => {
+                    self.probe_s = s;
                     Phase::Ramp
                 }
                 None => return Some(Err(Abort::NoDecay)),
             },
-            Phase::Near => {
-                self.kept[NEAR] = window;
-                Phase::Full
-            }
             Phase::Full => {
                 self.kept[FULL] = window;
-                Phase::Back
+                Phase::Near
             }
-            Phase::Ramp | Phase::Back => return Some(self.report(&window)),
+            Phase::Near => {
+                self.kept[NEAR] = window;
+                return Some(self.report());
+            }
+            Phase::Ramp => return Some(self.report()),
         };
         self.enter(next);
         None
     }
 
-    fn resistance(&self, second: &Window) -> Result<Resistance, Abort> {
-        let first = &self.kept[0];
-        let (u1, i1, var1) = first.current();
-        let (u2, i2, var2) = second.current();
-        let di = i2 - i1;
-        // Less than a tenth of the expected difference: nothing answers the voltage.
-        let expected = (HIGH_SHARE - LOW_SHARE) * self.plan.abort_a;
-        if di.is_nan() || di <= 0.1 * expected {
-            return Err(Abort::NoResponse);
-        }
-        let ohm = (u2 - u1) / di;
-        let spread_ohm = 2.0 * ohm * math::sqrt(var1 + var2) / di;
-        let n = first.n.saturating_add(second.n).max(1) as f32;
-        Ok(Resistance {
-            ohm,
-            spread_ohm,
-            i_a: [i1, i2],
-            u_v: [u1, u2],
-            vbus_v: (first.vbus + second.vbus) / n,
-        })
+    /// The coil's time constant `L / R` from the phase's step response, its end `shift_a`
+    /// from the level the fit took its deviations from.
+    fn time_constant(&self, shift_a: f32) -> Option<f32> {
+        let a = self.decay.factor(shift_a)?;
+        Some(-self.plan.period_s / libm::logf(a))
     }
 
-    /// The inductance from the phase's step response (`window`: the hold after it, for
-    /// the converter's noise).
-    fn inductance(&self, window: &Window) -> Option<f32> {
-        let a = self.decay.factor(window.current_noise())?;
-        Some(-self.plan.period_s * self.resistance.ohm / libm::logf(a))
-    }
-
-    /// Everything, once the last step back has answered (`back`: its window).
-    fn report(&self, back: &Window) -> Result<Report, Abort> {
+    /// Everything, once the last hold's window is complete.
+    fn report(&self) -> Result<Report, Abort> {
         let (open_m, var_open) = self.kept[OPEN].position();
-        let (probe_m, _) = self.kept[PROBE].position();
+        let (probe_m, _) = self.cycle.position();
         let (near_m, _) = self.kept[NEAR].position();
         let (closed_m, var_closed) = self.kept[FULL].position();
         let travel = closed_m - open_m;
@@ -879,7 +970,15 @@ impl Identification {
         if (closed_m - near_m).abs() > self.plan.still_m {
             return Err(Abort::NoStop);
         }
-        let closed_h = self.inductance(back).ok_or(Abort::NoDecay)?;
+        // At the closed stop the armature is pressed against it: the two holds give the
+        // resistance free of any motion.
+        let resistance = resistance(
+            &self.kept[NEAR],
+            &self.kept[FULL],
+            (FULL_SHARE - NEAR_SHARE) * self.plan.abort_a,
+        )?;
+        let shift = self.kept[NEAR].current().1 - self.kept[FULL].current().1;
+        let closed_h = resistance.ohm * self.time_constant(shift).ok_or(Abort::NoDecay)?;
         // The probe's pull moved the armature `x` off the open stop (the ends calibrate
         // the reading): `1/L` is linear in the gap, so the line through the probe's and
         // the closed stop's gives the open stop's.
@@ -887,10 +986,10 @@ impl Identification {
         if x.is_nan() || x >= MIN_TRAVEL_SHARE * stroke {
             return Err(Abort::PulledIn);
         }
-        let (inv_p, inv_c) = (1.0 / self.probe_h, 1.0 / closed_h);
+        let (inv_p, inv_c) = (1.0 / (resistance.ohm * self.probe_s), 1.0 / closed_h);
         let open_h = 1.0 / (inv_p + (inv_p - inv_c) * x / (stroke - x));
         Ok(Report {
-            resistance: self.resistance,
+            resistance,
             inductance: Inductance { open_h, closed_h },
             ends: Ends {
                 open_m,
@@ -917,11 +1016,14 @@ mod tests {
         rated_a: 4.0,
         natural_rad_s: 63.2,
         stroke_m: STROKE,
+        spring_n_per_m: 4000.0,
+        // The test magnet's pull at the open stop, 1.5 N/A^2.
+        open_force_h_per_m: 3.0,
     };
 
     /// A test actuator: the coil `L i' = u - R i` (exact exponential per tick) with a
     /// constant sensor offset `offset_a` and a bridge drop `drop_v` while it drives, the
-    /// drive applied one period late; an armature of 1 kg on a spring `k` with friction 40 N s/m between
+    /// drive applied one period late; an armature of 1 kg on a spring `k` with `friction` between
     /// stops at 0 and [`STROKE`], pulled by `pull(i, x)`; the reading `read(x)`.
     struct Rig {
         r: f32,
@@ -929,6 +1031,7 @@ mod tests {
         offset_a: f32,
         drop_v: f32,
         k: f32,
+        friction: f32,
         pull: fn(f32, f32) -> f32,
         read: fn(f32) -> f32,
         stuck: bool,
@@ -949,6 +1052,7 @@ mod tests {
                 offset_a: 0.05,
                 drop_v: 0.3,
                 k: 4000.0,
+                friction: 40.0,
                 pull: magnet,
                 read: |x| x,
                 stuck: false,
@@ -957,7 +1061,7 @@ mod tests {
 
         /// Runs a whole identification; its result and the highest current.
         fn run(&self) -> (Result<Report, Abort>, f32) {
-            let plan = Plan::new(&FILE, RATE, 0, 1e-5, 1e-3).unwrap();
+            let plan = Plan::new(&FILE, RATE, 0, 1e-5).unwrap();
             let mut id = Identification::new(plan);
             let (mut i, mut pending, mut applied) = (0.0_f32, 0.0_f32, 0.0_f32);
             let (mut x, mut v, mut peak) = (0.0_f32, 0.0_f32, 0.0_f32);
@@ -973,7 +1077,7 @@ mod tests {
                 i = u / self.r + (i - u / self.r) * decay;
                 peak = peak.max(i);
                 if !self.stuck {
-                    let a = (self.pull)(i, x) - self.k * x - 40.0 * v;
+                    let a = (self.pull)(i, x) - self.k * x - self.friction * v;
                     v += a * h;
                     x += v * h;
                     if x <= 0.0 || x >= STROKE {
@@ -1000,7 +1104,7 @@ mod tests {
 
     #[test]
     fn the_plan_follows_the_coil_and_the_armature() {
-        let p = Plan::new(&FILE, RATE, 0, 1e-5, 1e-3).unwrap();
+        let p = Plan::new(&FILE, RATE, 0, 1e-5).unwrap();
         // Slowest coil: 0.02 * 1.5 / (2 * 0.5) = 30 ms; six of them, 180 ms = 3600 ticks;
         // two averaged, 1200.
         assert_eq!(p.settle_ticks, 3600);
@@ -1011,6 +1115,24 @@ mod tests {
         // half of it, 1722 ticks; the release adds the coil's 180 ms.
         assert_eq!(p.ramp_ticks, 1722);
         assert_eq!(p.release_ticks, 5322);
+        // The probe's pull at the open stop: a tenth of the weakest spring's 4 N over the
+        // stroke (2000 N/m, 2 mm) against the strongest magnet (4.5 N/A^2) is 0.42 A,
+        // under a fifth of the rating (0.8 A).
+        let pull_a = (2.0_f32 * 0.1 * 2000.0 * STROKE / 4.5).sqrt();
+        assert!((p.probe_a[1] / pull_a - 1.0).abs() < 1e-6, "{p:?}");
+        assert!((p.probe_a[0] / (0.25 * pull_a) - 1.0).abs() < 1e-6, "{p:?}");
+        // A stiff spring leaves the rating's fifth.
+        let stiff = Plan::new(
+            &Coil {
+                spring_n_per_m: 40_000.0,
+                ..FILE
+            },
+            RATE,
+            0,
+            1e-5,
+        )
+        .unwrap();
+        assert_eq!(stiff.probe_a, [0.2, 0.8]);
         // A fast coil averages at least 20 ms.
         let fast = Plan::new(
             &Coil {
@@ -1023,7 +1145,6 @@ mod tests {
             50_000.0,
             0,
             1e-5,
-            1e-3,
         )
         .unwrap();
         assert_eq!(fast.average_ticks, 1000);
@@ -1044,8 +1165,12 @@ mod tests {
                 stroke_m: -1.0,
                 ..FILE
             },
+            Coil {
+                open_force_h_per_m: 0.0,
+                ..FILE
+            },
         ] {
-            assert!(Plan::new(&bad, RATE, 0, 1e-5, 1e-3).is_none(), "{bad:?}");
+            assert!(Plan::new(&bad, RATE, 0, 1e-5).is_none(), "{bad:?}");
         }
     }
 
@@ -1069,6 +1194,25 @@ mod tests {
             // The holds at the closed stop stay below the rating, whatever the file said.
             assert!(peak < 0.96 * 4.0, "{r}: {peak} A");
         }
+    }
+
+    #[test]
+    fn a_ringing_armature_is_measured_at_the_stops() {
+        // 1 N s/m: a damping ratio of 0.008; the armature floating about the first two
+        // steps' equilibria rings for seconds. The resistance comes from the closed stop.
+        let mut ringing = Rig::coil(2.0);
+        ringing.friction = 1.0;
+        // A pull that grows gently as the gap closes: at the first step (1.2 A) the
+        // armature floats about 0.24 mm, at the second (2.4 A) about 1.3 mm; from 3 A on
+        // it is pressed against the closed stop.
+        ringing.pull = |i, x| 0.6 * i * i * (1.0 + 400.0 * x);
+        let (got, peak) = ringing.run();
+        let got = got.unwrap();
+        assert!((got.resistance.ohm / 2.0 - 1.0).abs() < 1e-3, "{got:?}");
+        for h in [got.inductance.open_h, got.inductance.closed_h] {
+            assert!((h / 0.02 - 1.0).abs() < 3e-3, "{got:?}");
+        }
+        assert!(peak < 0.96 * 4.0, "{peak} A");
     }
 
     #[test]

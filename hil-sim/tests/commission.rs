@@ -8,7 +8,9 @@
 //! to 3 % of the stroke in offset and in gain have their end stops found within 2 codes,
 //! never above the rated current and within 10 s; a coil open or shorted, a sensor wired
 //! backwards, a jammed armature and a broken spring each end it by name; a disarm stops a
-//! commissioning; an armed board refuses one.
+//! commissioning; an armed board refuses one. An actuator off its file, commissioned,
+//! tuned and applied by the host tool, is saved on the board in the board's own form and
+//! meets the targets on a step.
 
 #[path = "common/rig.rs"]
 mod rig;
@@ -48,6 +50,7 @@ impl Commissioning for Rig {
     fn commission(&mut self) -> anyhow::Result<ema::commission::Report> {
         let args = CommissionArgs {
             apply: false,
+            tune: false,
             timeout_s: 60.0,
             out: None,
         };
@@ -328,6 +331,7 @@ fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
     let path = std::env::temp_dir().join(format!("ema-commissioned-{}.toml", std::process::id()));
     let args = CommissionArgs {
         apply: false,
+        tune: false,
         timeout_s: 60.0,
         out: Some(path.clone()),
     };
@@ -351,4 +355,90 @@ fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
     let printed = String::from_utf8(printed).unwrap();
     assert!(printed.contains("inductance at the open stop"), "{printed}");
     eprintln!("{printed}{text}");
+}
+
+#[test]
+fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on_the_board() {
+    let mut rig = Rig::new(Options {
+        noise: true,
+        ..Options::default()
+    });
+    // Not the file's actuator: a coil 15 % above its resistance, surfaces 15 % smaller.
+    rig.coil(1.15 * f64::from(Actuator::PRODUCT.coil.resistance_ohm));
+    rig.inject.send(Injection::Surfaces(0.85)).unwrap();
+    rig.status();
+    let dir = std::env::temp_dir().join(format!("ema-tuned-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("measured.toml");
+    let args = CommissionArgs {
+        apply: true,
+        tune: true,
+        timeout_s: 60.0,
+        out: Some(path.clone()),
+    };
+    let mut printed = Vec::new();
+    let got = cli::commission(&mut rig.link, &args, &mut printed).unwrap();
+    let printed = String::from_utf8(printed).unwrap();
+    let read = |p: &std::path::Path| {
+        let text = std::fs::read_to_string(p).unwrap();
+        hil_sim::actuator::parse(&text, &p.display().to_string()).unwrap()
+    };
+    let measured = read(&path);
+    let tuned = read(&dir.join("measured.tuned.toml"));
+    // The predicted responses and their figures, beside the file.
+    for f in [
+        "measured/metrics.csv",
+        "measured/x1-x2.png",
+        "measured-tune/candidates.csv",
+    ] {
+        assert!(dir.join(f).is_file(), "{f} missing:\n{printed}");
+    }
+    // Saved: the board restarted with its stored set, which carries the measured coil,
+    // the measured circuit in the board's own form (geometry) and the tuning chosen.
+    let status = rig.status();
+    assert!(
+        matches!(status.params, ema::protocol::Source::Stored),
+        "{:?}",
+        status.params
+    );
+    let board = cli::read_params(&mut rig.link).unwrap().actuator;
+    assert_eq!(board.coil.resistance_ohm, got.resistance.ohm);
+    assert!(matches!(
+        board.magnetics,
+        ema::actuator::Magnetics::Geometry { .. }
+    ));
+    let (b, m) = (
+        board.time_scales().unwrap(),
+        measured.time_scales().unwrap(),
+    );
+    for (x, y) in [
+        (b.coil_open_s, m.coil_open_s),
+        (b.coil_closed_s, m.coil_closed_s),
+    ] {
+        assert!((x / y - 1.0).abs() < 1e-4, "{x} {y}");
+    }
+    assert_eq!(board.tuning, tuned.tuning);
+    assert!(board.tuning.is_some());
+    // Closed on the actuator it was commissioned on: a step to 3 mm meets the targets
+    // (2 % settling within 0.2 s, overshoot at most 0.5 %, steady error at most 0.1 %).
+    rig.link.done(Command::Arm).unwrap();
+    let c = cli::capture(
+        &mut rig.link,
+        &cli::CaptureArgs {
+            position_mm: 3.0,
+            time_s: None,
+            samples: 256,
+            decimation: 20,
+            noise: true,
+            out: dir.join("capture"),
+        },
+        &mut std::io::sink(),
+    )
+    .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let seg = c.board.first().unwrap();
+    eprintln!("{printed}step to 3 mm on the board: {seg:?}");
+    assert!(seg.settling_time_s.unwrap() < 0.2, "{seg:?}");
+    assert!(seg.overshoot_pct < 0.5, "{seg:?}");
+    assert!(seg.steady_error_pct.abs() < 0.1, "{seg:?}");
 }

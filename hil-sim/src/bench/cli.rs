@@ -21,7 +21,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Context};
+use anyhow::{anyhow, bail, ensure, Context};
 use clap::{Parser, Subcommand};
 use ema::actuator::{Actuator, Magnetics};
 use ema::commission::{self, Report};
@@ -109,9 +109,16 @@ pub enum Verb {
 #[derive(Clone, Debug, clap::Args)]
 pub struct CommissionArgs {
     /// Also set `coil.resistance_ohm` to the measured value (validated as any `set`; not
-    /// stored until `save`).
+    /// stored until `save`). With `--tune`: the resistance, the magnetic circuit (in the
+    /// board's form) and the tuning, then saved.
     #[arg(long)]
     pub apply: bool,
+    /// Tunes the commissioned actuator (the file `--out` writes): `hil-sim tune` at the
+    /// board's rate, then the tuned file's evaluation run, the predicted step responses
+    /// with their metrics and figures; all beside the file (`<stem>.tuned.toml`,
+    /// `<stem>-tune/`, `<stem>/`).
+    #[arg(long, requires = "out")]
+    pub tune: bool,
     /// Longest wait for the result (s).
     #[arg(long, default_value_t = 60.0)]
     pub timeout_s: f64,
@@ -277,24 +284,7 @@ pub fn run<P: std::io::Read + Write>(
                 value_text(&name, v)
             )?;
         }
-        Verb::Save => {
-            link.forget_started();
-            link.done(Command::Save)?;
-            let started = link.wait_started(Duration::from_secs(10))?;
-            match started.saved {
-                Some(Ok(())) => writeln!(
-                    out,
-                    "saved; the board restarted with the {}",
-                    super::source(&started.params)
-                )?,
-                Some(Err(e)) => bail!(
-                    "the save failed: {}; the board restarted with the {}",
-                    super::board::store_error(e),
-                    super::source(&started.params)
-                ),
-                None => bail!("the board restarted without saving"),
-            }
-        }
+        Verb::Save => save(link, out)?,
         Verb::Load => {
             link.done(Command::Load)?;
             writeln!(out, "loaded the stored parameters")?;
@@ -431,7 +421,51 @@ pub fn commission<P: std::io::Read + Write>(
             .map_err(|e| anyhow!("{}: {e}", path.display()))?;
         writeln!(out, "actuator file written: {}", path.display())?;
     }
-    if args.apply {
+    if args.tune {
+        let Some(path) = &args.out else {
+            bail!("--tune needs --out FILE: the commissioned file is what is tuned")
+        };
+        writeln!(out)?;
+        let stem = crate::actuator::stem(path);
+        let beside = |name: String| crate::cli::Output {
+            out: Some(path.with_file_name(name)),
+        };
+        let tuned = crate::cli::tune::run(
+            &crate::cli::tune::Args {
+                actuator: path.display().to_string(),
+                rates_hz: Some(vec![f64::from(file.board.rate_hz)]),
+                validate: TUNE_VALIDATION_DRAWS,
+                substeps: 1,
+                tuned: None,
+                quiet: true,
+                output: beside(format!("{stem}-tune")),
+            },
+            out,
+        )?;
+        let Some(tuned_path) = tuned.tuned else {
+            bail!("no tuning meets every target for the commissioned actuator (see above); nothing applied")
+        };
+        writeln!(out, "\npredicted with the tuned file:")?;
+        crate::cli::run::run(
+            &crate::cli::run::Args {
+                scenario: tuned_path.display().to_string(),
+                output: beside(stem.clone()),
+                max_rows: 20_000,
+            },
+            out,
+        )?;
+        if args.apply {
+            let (_, act, _) = crate::actuator::load_untuned(&tuned_path.display().to_string())?;
+            let tuned_act = crate::actuator::parse(
+                &std::fs::read_to_string(&tuned_path)?,
+                &tuned_path.display().to_string(),
+            )?;
+            let tuning = tuned_act
+                .tuning
+                .ok_or_else(|| anyhow!("{}: no tuning in it", tuned_path.display()))?;
+            apply_commissioned(link, &file, &act, &tuning, out)?;
+        }
+    } else if args.apply {
         link.done(Command::Set {
             name: "coil.resistance_ohm",
             value: Value::Number(r.ohm),
@@ -443,6 +477,122 @@ pub fn commission<P: std::io::Read + Write>(
         )?;
     }
     Ok(report)
+}
+
+/// Drawn plants `commission --tune` validates the tuning on.
+const TUNE_VALIDATION_DRAWS: usize = 100;
+
+/// The parameters that carry a commissioned actuator `measured` (its magnetic circuit in
+/// the two-inductance form) on a board whose file is `board`: the resistance, and the
+/// magnetic circuit in the board's own form (its kind is fixed by the firmware build).
+/// In the geometry form without spread, `1/L` is linear in the gap as in the measured
+/// one: the pole's sides are scaled for the measured airgap reluctance (the fringing
+/// coefficient kept) and the iron's reluctance set to the measured one.
+///
+/// # Errors
+/// A board whose circuit has a fringing spread (its `1/L` is not linear in the gap, so
+/// two inductances do not fix it), or a measured circuit that is not in the two-inductance
+/// form.
+pub fn commissioned_params(
+    board: &Actuator,
+    measured: &Actuator,
+) -> anyhow::Result<Vec<(&'static str, f32)>> {
+    let Magnetics::Inductance { open_h, closed_h } = measured.magnetics else {
+        bail!("the commissioned actuator's circuit is not in the two-inductance form")
+    };
+    let mut out = vec![("coil.resistance_ohm", measured.coil.resistance_ohm)];
+    match board.magnetics {
+        Magnetics::Inductance { .. } => {
+            out.push(("magnetics.inductance.open_h", open_h));
+            out.push(("magnetics.inductance.closed_h", closed_h));
+        }
+        Magnetics::Geometry {
+            gaps,
+            pole_a_m,
+            pole_b_m,
+            fringing_coefficient,
+            fringing_spread,
+            ..
+        } => {
+            ensure!(
+                fringing_spread == 0.0,
+                "the board's magnetics.geometry.fringing_spread = {fringing_spread}: its 1/L is \
+                 not linear in the gap and two inductances do not fix it; commission with the \
+                 circuit in the two-inductance form"
+            );
+            let m = &measured.mechanics;
+            let n2 = measured.coil.turns * measured.coil.turns;
+            let (g_open, g_closed) = (m.residual_gap_m + m.stroke_m, m.residual_gap_m);
+            let rho_x = n2 * (1.0 / open_h - 1.0 / closed_h) / (g_open - g_closed);
+            let rho_0 = n2 / closed_h - rho_x * g_closed;
+            // rho_x = gaps / (mu0 alpha a b): the surface the measured rho_x asks.
+            let surface = gaps / (ema::model::MU0_H_PER_M * rho_x);
+            let scale = (surface / (fringing_coefficient * pole_a_m * pole_b_m)).sqrt();
+            out.push(("magnetics.geometry.pole_a_m", scale * pole_a_m));
+            out.push(("magnetics.geometry.pole_b_m", scale * pole_b_m));
+            out.push(("magnetics.geometry.iron_reluctance_per_h", rho_0));
+        }
+    }
+    Ok(out)
+}
+
+/// Sets the commissioned actuator `measured` and its `tuning` on the board and saves
+/// them; on a refusal the stored parameters are loaded back and nothing is saved.
+fn apply_commissioned<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    board: &Actuator,
+    measured: &Actuator,
+    tuning: &ema::actuator::Tuning,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    let mut sets: Vec<(&str, Value)> = commissioned_params(board, measured)?
+        .into_iter()
+        .map(|(k, v)| (k, Value::Number(v)))
+        .collect();
+    sets.extend([
+        ("tuning.alpha_per_s", Value::Number(tuning.alpha_per_s)),
+        (
+            "tuning.observer_rad_s",
+            Value::Number(tuning.observer_rad_s),
+        ),
+        ("tuning.margin", Value::Number(tuning.margin)),
+        (
+            "tuning.disturbance_follows_force",
+            Value::Flag(tuning.disturbance_follows_force),
+        ),
+    ]);
+    for (name, value) in sets {
+        if let Err(e) = link.done(Command::Set { name, value }) {
+            link.done(Command::Load)?;
+            bail!("{e}; the stored parameters are loaded back, nothing saved");
+        }
+        writeln!(out, "{name} = {}", value_text(name, value))?;
+    }
+    save(link, out)
+}
+
+/// Stores the parameters in use; the board restarts with them.
+///
+/// # Errors
+/// No restart, or the board's store failed (named).
+fn save<P: std::io::Read + Write>(link: &mut Link<P>, out: &mut dyn Write) -> anyhow::Result<()> {
+    link.forget_started();
+    link.done(Command::Save)?;
+    let started = link.wait_started(Duration::from_secs(10))?;
+    match started.saved {
+        Some(Ok(())) => writeln!(
+            out,
+            "saved; the board restarted with the {}",
+            super::source(&started.params)
+        )?,
+        Some(Err(e)) => bail!(
+            "the save failed: {}; the board restarted with the {}",
+            super::board::store_error(e),
+            super::source(&started.params)
+        ),
+        None => bail!("the board restarted without saving"),
+    }
+    Ok(())
 }
 
 /// The least iron reluctance an actuator file written from a commissioning keeps, as a

@@ -16,8 +16,9 @@ use rand::Rng;
 use crate::bench::board::scenario;
 use crate::hal::{self, Adc};
 use crate::plant::Params;
-use crate::scenario::Sensors;
+use crate::scenario::{Sensors, TruePlant};
 use crate::sim::Stepper;
+use crate::targets::{Targets, Worst};
 use crate::Error;
 
 /// An actuator drawn off its file, as a user's is: the airgap surfaces, the coil's
@@ -65,6 +66,48 @@ impl Draw {
     }
 }
 
+/// The least iron reluctance an actuator measured by a commissioning keeps, as a share of
+/// the closed gap's total (see [`measured`]).
+pub const IRON_SHARE: f32 = 0.01;
+
+/// The actuator a commissioning measured: `file` (the board's) with the measured
+/// resistance and the two inductances (the magnetic circuit in its two-inductance form),
+/// the tuning dropped (it was for another actuator); and the factor both inductances were
+/// moved by.
+///
+/// The file's form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the iron's
+/// `rho_0` positive. A real circuit's fringing bends the line (the surface grows with the
+/// gap), and through the two measured points its intercept can fall below zero: then both
+/// are moved, by the same factor in opposite directions, to the nearest line whose `rho_0`
+/// is [`IRON_SHARE`] of the closed gap's reluctance.
+///
+/// # Errors
+/// Measured values no actuator can have (the actuator does not validate).
+pub fn measured(file: &Actuator, report: &Report) -> Result<(Actuator, f32), Error> {
+    let l = report.inductance;
+    let mut a = *file;
+    a.coil.resistance_ohm = report.resistance.ohm;
+    let (g_open, g_closed) = (
+        a.mechanics.residual_gap_m + a.mechanics.stroke_m,
+        a.mechanics.residual_gap_m,
+    );
+    let (rho_o, rho_c) = (1.0 / l.open_h, 1.0 / l.closed_h);
+    let q = g_closed / (g_open - g_closed);
+    let intercept = rho_c - (rho_o - rho_c) * q;
+    let moved = if intercept < IRON_SHARE * rho_c {
+        ((1.0 - IRON_SHARE + q) * rho_c / (q * rho_o)).sqrt()
+    } else {
+        1.0
+    };
+    a.magnetics = ema::actuator::Magnetics::Inductance {
+        open_h: l.open_h / moved,
+        closed_h: l.closed_h * moved,
+    };
+    a.tuning = None;
+    a.plant().map_err(Error::Actuator)?;
+    Ok((a, moved))
+}
+
 /// One commissioning and what it is judged against.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Outcome {
@@ -103,14 +146,86 @@ impl Outcome {
     }
 }
 
+/// The plant of actuator `a`'s file, or `draw`n from it.
+///
+/// # Errors
+/// An actuator whose settings do not derive.
+pub fn true_plant(a: &Actuator, draw: Option<&Draw>) -> Result<Params, Error> {
+    let sc = scenario(a, true)?;
+    let file = sc.plant.resolve(&sc.controller.plant);
+    Ok(draw.map_or_else(|| file.clone(), |d| d.apply(&file)))
+}
+
+/// Plants a tuning is validated on in [`closed_loop`] (the tune command's default is 100:
+/// this runs once per commissioned actuator).
+pub const CLOSED_LOOP_VALIDATION: usize = 20;
+
+/// What a commissioned actuator does once tuned, in closed loop on its true plant.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ClosedLoop {
+    /// No tuning meets every target on the measured actuator's corner plants: the tune's
+    /// diagnosis.
+    Untuned(String),
+    /// The actuator's evaluation sequence on its true plant.
+    Ran {
+        /// Its worst metrics.
+        worst: Worst,
+        /// The targets they are judged by.
+        targets: Targets,
+    },
+}
+
+impl ClosedLoop {
+    /// The targets missed (`untuned` when no tuning was found).
+    #[must_use]
+    pub fn misses(&self) -> Vec<&'static str> {
+        match self {
+            ClosedLoop::Untuned(_) => vec!["untuned"],
+            ClosedLoop::Ran { worst, targets } => worst.misses(targets),
+        }
+    }
+}
+
+/// Tunes the actuator `report` measured on file `a` ([`measured`]) at the board's rate,
+/// as `bench commission --tune` does, and runs its evaluation sequence on the true
+/// `plant`, the converter with its typical noise but no gain or offset error (the end
+/// stops are not yet applied to the calibration, so a sensor's own error would stay in
+/// the position).
+///
+/// # Errors
+/// Measured values no actuator can have; settings that do not derive.
+pub fn closed_loop(a: &Actuator, report: &Report, plant: &Params) -> Result<ClosedLoop, Error> {
+    let (m, _) = measured(a, report)?;
+    let rate = f64::from(a.board.rate_hz);
+    let space = crate::tune::Space::for_actuator(&m, rate)?;
+    let tuned = crate::tune::tune(
+        "commissioned",
+        &m,
+        &[rate],
+        &space,
+        1,
+        CLOSED_LOOP_VALIDATION,
+    )?;
+    let Some(t) = tuned.tuned else {
+        return Ok(ClosedLoop::Untuned(tuned.diagnosis.unwrap_or_default()));
+    };
+    let mut sc = crate::actuator::scenario("commissioned", &t)?;
+    sc.plant = TruePlant::Given(plant.clone());
+    let run = crate::sim::run(&sc)?;
+    let targets = Targets::for_scenario(&sc);
+    Ok(ClosedLoop::Ran {
+        worst: Worst::of([&run.metrics], &targets),
+        targets,
+    })
+}
+
 /// Commissions actuator `a` (its file), the plant the file's or `draw`n from it.
 ///
 /// # Errors
 /// An actuator whose settings do not derive.
 pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
     let sc = scenario(a, true)?;
-    let file_plant = sc.plant.resolve(&sc.controller.plant);
-    let plant = draw.map_or_else(|| file_plant.clone(), |d| d.apply(&file_plant));
+    let plant = true_plant(a, draw)?;
     let mut stepper = Stepper::for_scenario(&sc, plant.clone(), sc.integration.substeps)?;
     let mut converter = match &sc.sensors {
         Sensors::Adc(adc) => adc.start(&sc.controller.sense),

@@ -520,11 +520,12 @@ pub fn commissioned_params(
                  not linear in the gap and two inductances do not fix it; commission with the \
                  circuit in the two-inductance form"
             );
-            let m = &measured.mechanics;
-            let n2 = measured.coil.turns * measured.coil.turns;
-            let (g_open, g_closed) = (m.residual_gap_m + m.stroke_m, m.residual_gap_m);
-            let rho_x = n2 * (1.0 / open_h - 1.0 / closed_h) / (g_open - g_closed);
-            let rho_0 = n2 / closed_h - rho_x * g_closed;
+            // The measured circuit in the model's form: `rho_x` constant over the gap.
+            let circuit = measured
+                .plant()
+                .map_err(|e| anyhow!("the measured actuator: {e}"))?
+                .magnetics;
+            let (rho_x, rho_0) = (circuit.rho_x_per_h_m(0.0), circuit.rho0_per_h);
             // rho_x = gaps / (mu0 alpha a b): the surface the measured rho_x asks.
             let surface = gaps / (ema::model::MU0_H_PER_M * rho_x);
             let scale = (surface / (fringing_coefficient * pole_a_m * pole_b_m)).sqrt();
@@ -595,14 +596,9 @@ fn save<P: std::io::Read + Write>(link: &mut Link<P>, out: &mut dyn Write) -> an
     Ok(())
 }
 
-/// The least iron reluctance an actuator file written from a commissioning keeps, as a
-/// share of the closed gap's total (see [`actuator_file`]).
-const IRON_SHARE: f32 = 0.01;
-
-/// The actuator file a commissioning gives: `file` (the board's) with the measured
-/// resistance and the two inductances (the magnetic circuit in its two-inductance form,
-/// the tuning dropped: it was for another actuator), each measured value and its
-/// uncertainty, and the end stops, in comments at its head.
+/// The actuator file a commissioning gives: the measured actuator
+/// ([`crate::commissioning::measured`]), each measured value and its uncertainty, and the
+/// end stops, in comments at its head.
 ///
 /// # Errors
 /// The file does not serialise or does not validate (the board measured values no
@@ -611,32 +607,7 @@ pub fn actuator_file(file: &ema::actuator::Actuator, report: &Report) -> anyhow:
     let r = report.resistance;
     let l = report.inductance;
     let e = report.ends;
-    let mut a = *file;
-    a.coil.resistance_ohm = r.ohm;
-    // The file's form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the iron's
-    // `rho_0` positive. A real circuit's fringing bends the line (the surface grows with
-    // the gap), and through the two measured points its intercept can fall below zero:
-    // then both are moved, by the same factor in opposite directions, to the nearest line
-    // whose `rho_0` is 1 % of the closed gap's reluctance.
-    let (g_open, g_closed) = (
-        a.mechanics.residual_gap_m + a.mechanics.stroke_m,
-        a.mechanics.residual_gap_m,
-    );
-    let (rho_o, rho_c) = (1.0 / l.open_h, 1.0 / l.closed_h);
-    let q = g_closed / (g_open - g_closed);
-    let intercept = rho_c - (rho_o - rho_c) * q;
-    let moved = if intercept < IRON_SHARE * rho_c {
-        ((1.0 - IRON_SHARE + q) * rho_c / (q * rho_o)).sqrt()
-    } else {
-        1.0
-    };
-    a.magnetics = ema::actuator::Magnetics::Inductance {
-        open_h: l.open_h / moved,
-        closed_h: l.closed_h * moved,
-    };
-    a.tuning = None;
-    a.plant()
-        .map_err(|e| anyhow!("the measured actuator: {e}"))?;
+    let (a, moved) = crate::commissioning::measured(file, report)?;
     let head = format!(
         "# Commissioned on the board (loop open, armature at rest):\n\
          #   coil.resistance_ohm = {} +- {} (two standard errors, converter noise)\n\

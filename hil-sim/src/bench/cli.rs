@@ -417,6 +417,9 @@ pub fn commission<P: std::io::Read + Write>(
         1e6 * stroke_m
     )?;
     if let Some(path) = &args.out {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            report::create_dir(dir)?;
+        }
         std::fs::write(path, actuator_file(&file, &report)?)
             .map_err(|e| anyhow!("{}: {e}", path.display()))?;
         writeln!(out, "actuator file written: {}", path.display())?;
@@ -1050,6 +1053,10 @@ pub fn capture<P: std::io::Read + Write>(
     })
 }
 
+/// What the virtual board's standard input takes.
+const INJECTIONS: &str = "supply V, position-open, position-ok, analog-v V, analog-ma MA, \
+                          cut-save STEP, resistance OHM, surfaces SCALE";
+
 /// A line of the virtual board's standard input, as an injection.
 fn injection(line: &str) -> Option<Result<Injection, String>> {
     let mut words = line.split_whitespace();
@@ -1068,9 +1075,9 @@ fn injection(line: &str) -> Option<Result<Injection, String>> {
             current: true,
         }),
         ("cut-save", Some(Ok(v))) => Ok(Injection::CutSave(v as u64)),
-        _ => Err(format!(
-            "unknown: `{line}` (supply V, position-open, position-ok, analog-v V, analog-ma MA, cut-save STEP)"
-        )),
+        ("resistance", Some(Ok(v))) => Ok(Injection::Resistance(v)),
+        ("surfaces", Some(Ok(v))) => Ok(Injection::Surfaces(v)),
+        _ => Err(format!("unknown: `{line}` ({INJECTIONS})")),
     })
 }
 
@@ -1096,7 +1103,7 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     }
     writeln!(
         out,
-        "virtual board on {path}: {} at {} Hz, {}; injections on standard input (supply V, position-open, position-ok, analog-v V, analog-ma MA, cut-save STEP)",
+        "virtual board on {path}: {} at {} Hz, {}; injections on standard input ({INJECTIONS})",
         a.actuator.as_deref().unwrap_or("the product's actuator"),
         board.scenario().rate_hz(),
         if a.speed > 0.0 {

@@ -60,9 +60,9 @@
 //! spring is soft against its magnet, [`PROBE_PULL_SHARE`]), at the closed stop from the
 //! step from [`FULL_SHARE`] down to [`NEAR_SHARE`]. Each step goes to a level `i_end`
 //! measured in a hold's window (the closed stop's after the step: the fit's sums are
-//! linear in `i_end`, so it enters once known); sampled at the same point of every PWM period whatever the
-//! ripple, the current then decays geometrically, `y(k+1) = a y(k)` with
-//! `y = i - i_end` and `a = exp(-Ts R / L)`. `a` is the ratio of two weighted sums of the
+//! linear in `i_end`, so it enters once known); sampled at the same point of every PWM
+//! period whatever the ripple, the current then decays geometrically, `y(k+1) = a y(k)`
+//! with `y = i - i_end` and `a = exp(-Ts R / L)`. `a` is the ratio of two weighted sums of the
 //! readings the converter's delay lets answer the step, `sum w y(k+1) / sum w y(k)`, the
 //! weights falling as the file's coil would ([`Plan::guess_factor`], down to
 //! [`FIT_WEIGHT_FLOOR`]): both sums are linear in the readings, so the converter's noise
@@ -442,11 +442,13 @@ pub struct Report {
     pub inductance: Inductance,
 }
 
-/// A current's response to a voltage step towards a level measured before, the armature
-/// still: `y(k) = i(k) - i_end` obeys `y(k+1) = a y(k)`. `a` is estimated with an
-/// instrument, `a = sum w(k) y(k+1) / sum w(k) y(k)`, the weight `w(k) = +-g^k` falling
-/// as the file's coil would (`g`, its factor per period) from the first reading the
-/// converter's delay lets answer the step. Numerator and denominator are linear in the
+/// A current's response to a voltage step towards a level `i_end` (measured before the
+/// step, or by the hold after it: the sums are linear in it), the armature still:
+/// `y(k) = i(k) - i_end` obeys `y(k+1) = a y(k)`. `a` is estimated with an instrument,
+/// `a = sum w(k) y(k+1) / sum w(k) y(k)`, the weight `w(k) = +-g^k` (the sign of the
+/// step's deviation, `+` for a step down) falling as the file's coil would (`g`, its
+/// factor per period) from the first reading the converter's delay lets answer the
+/// step. Numerator and denominator are linear in the
 /// readings, so their noise (zero mean) does not bias the ratio as it biases a least
 /// squares on `y(k)` itself (whose regressor's noise variance the small probe's readings
 /// are comparable with); the weight's guess only costs efficiency, not accuracy.
@@ -460,8 +462,6 @@ struct Decay {
     last: f32,
     /// The weight of the next pair (0: this step's fit has ended).
     weight: f32,
-    /// Sign of the step's deviation: `+1` for a step down, `-1` for a step up.
-    sign: f32,
     /// The file's coil's factor per period, the weight's decay.
     guess: f32,
     sxy: f32,
@@ -479,7 +479,6 @@ impl Decay {
             since: u32::MAX,
             last: 0.0,
             weight: sign,
-            sign,
             guess,
             sxy: 0.0,
             sxx: 0.0,
@@ -493,7 +492,6 @@ impl Decay {
         self.end_a = end_a;
         self.since = u32::MAX;
         self.weight = sign;
-        self.sign = sign;
     }
 
     /// A reading `i_a`; `stepped`: the voltage over the period it ends differs from the
@@ -687,8 +685,8 @@ enum Rest {
     /// first two steps' resistance only sets the later voltages, and a lightly damped
     /// armature ringing about the pull's equilibrium leaves a back-EMF that averages out.
     Preferred,
-    /// The window measures the current only (its level, its noise); the probe's position
-    /// is averaged over its cycle, where its inductance is fitted.
+    /// The window measures the current's level only; the probe's position is averaged
+    /// over its cycle, where its inductance is fitted.
     Any,
 }
 

@@ -718,7 +718,9 @@ pub struct Identification {
     window: Window,
     /// The windows the result is made from (the resistance's first step in the first).
     kept: [Window; 4],
-    resistance: Resistance,
+    /// The resistance the first two steps measured, which every later voltage is set
+    /// from \[ohm\] (the one reported comes from the closed stop).
+    drive_ohm: f32,
     /// The step response being fitted.
     decay: Decay,
     /// The coil's time constant at the probe's position near the open stop \[s\].
@@ -742,13 +744,7 @@ impl Identification {
             restarts: 0,
             window: Window::EMPTY,
             kept: [Window::EMPTY; 4],
-            resistance: Resistance {
-                ohm: 0.0,
-                spread_ohm: 0.0,
-                i_a: [0.0; 2],
-                u_v: [0.0; 2],
-                vbus_v: 0.0,
-            },
+            drive_ohm: 0.0,
             decay: Decay::NONE,
             probe_s: 0.0,
             probe_end_a: 0.0,
@@ -771,7 +767,7 @@ impl Identification {
 
     /// The voltage of current `i_a` at the resistance the first two steps measured \[V\].
     fn current_v(&self, i_a: f32) -> f32 {
-        i_a * self.resistance.ohm
+        i_a * self.drive_ohm
     }
 
     /// The phase's drive \[V\] and the ticks it waits before its window.
@@ -905,7 +901,7 @@ impl Identification {
                     &window,
                     (HIGH_SHARE - LOW_SHARE) * self.plan.abort_a,
                 ) {
-                    Ok(r) => self.resistance = r,
+                    Ok(r) => self.drive_ohm = r.ohm,
                     Err(a) => return Some(Err(a)),
                 }
                 Phase::Open
@@ -937,7 +933,8 @@ impl Identification {
                 self.kept[NEAR] = window;
                 return Some(self.report());
             }
-            Phase::Ramp => return Some(self.report()),
+            // The ramp ends by its own count (see `step`), never by a window.
+            Phase::Ramp => Phase::Full,
         };
         self.enter(next);
         None

@@ -458,15 +458,15 @@ pub fn commission<P: std::io::Read + Write>(
             out,
         )?;
         if args.apply {
-            let (_, act, _) = crate::actuator::load_untuned(&tuned_path.display().to_string())?;
-            let tuned_act = crate::actuator::parse(
+            // The tuned file: the measured actuator with the tuning chosen.
+            let tuned = crate::actuator::parse(
                 &std::fs::read_to_string(&tuned_path)?,
                 &tuned_path.display().to_string(),
             )?;
-            let tuning = tuned_act
+            let tuning = tuned
                 .tuning
                 .ok_or_else(|| anyhow!("{}: no tuning in it", tuned_path.display()))?;
-            apply_commissioned(link, &file, &act, &tuning, out)?;
+            apply_commissioned(link, &file, &tuned, &tuning, out)?;
         }
     } else if args.apply {
         link.done(Command::Set {

@@ -165,8 +165,9 @@ pub struct Board {
     pub supply_v: f32,
     /// Control interrupt rate, one tick per PWM period \[Hz\].
     pub rate_hz: f32,
-    /// Travel the position sensor maps onto 90 % of the converter's range (5 % to 95 %)
-    /// \[m\]; at least the stroke.
+    /// Travel the position sensor maps onto the converter's range, less the room
+    /// [`Actuator::calibration`] leaves at either end for the sensor's tolerance \[m\]; at
+    /// least the stroke.
     pub position_span_m: f32,
     /// Full scale of the bidirectional current channel, `+-` this \[A\].
     pub current_full_scale_a: f32,
@@ -294,10 +295,10 @@ pub const SETTLING_CLAIM_S: f32 = 0.2;
 /// Settling target of a slower actuator, per unit of its minimum-time move \[-\].
 pub const SETTLING_PER_MINIMUM_MOVE: f32 = 1.5;
 
-/// Converter code at the position sensor's zero (5 % of full scale).
-const POSITION_ZERO_SHARE: f32 = 0.05;
-/// Share of the converter range the position sensor's span covers (5 % to 95 %).
-const POSITION_SPAN_SHARE: f32 = 0.9;
+/// Offset and gain error a position sensor may carry, each as a share of its span \[-\]:
+/// the calibration leaves room for both at either end of the stroke, so that such a sensor
+/// reads within the converter's plausible window until commissioning measures its ends.
+pub const POSITION_SENSOR_TOLERANCE: f32 = 0.03;
 /// The board's over-current comparator, per unit of the peak current (the software trip):
 /// 20 % above it, for the PWM ripple and the rise within one period that the sampled trip
 /// cannot see.
@@ -569,19 +570,26 @@ impl Actuator {
         Ok(plant)
     }
 
-    /// The converters' calibration: position zero at 5 % of full scale and the span over
-    /// 90 %, the current channel bidirectional about mid-scale, the bus from zero; codes
-    /// within 1 % of a rail read as a broken sensor.
+    /// The converters' calibration: the position sensor's zero and span placed so that a
+    /// sensor off by [`POSITION_SENSOR_TOLERANCE`] in offset and in gain still reads inside
+    /// the plausible window at both stops, noise included; the current channel
+    /// bidirectional about mid-scale, the bus from zero; codes within 1 % of a rail read as
+    /// a broken sensor.
     #[must_use]
     pub fn calibration(&self) -> Calibration {
         let full = f32::from(ADC_MAX_CODE) + 1.0;
         let b = &self.board;
         let window_lo = RAIL_MARGIN_CODES;
         let window_hi = ADC_MAX_CODE - RAIL_MARGIN_CODES;
+        // Below the zero and above the span's end, room for an offset and a gain error of
+        // the tolerance each (2 T of the span) and the noise's reach, inside the window.
+        let room = 2.0 * POSITION_SENSOR_TOLERANCE;
+        let edge = f32::from(RAIL_MARGIN_CODES) + NOISE_SIGMAS * NOISE_RMS_CODES;
+        let span_codes = (full - 2.0 * edge) / (1.0 + 2.0 * room);
         Calibration {
             position: Channel {
-                offset_code: POSITION_ZERO_SHARE * full,
-                scale: b.position_span_m / (POSITION_SPAN_SHARE * full),
+                offset_code: edge + room * span_codes,
+                scale: b.position_span_m / span_codes,
                 min_code: window_lo,
                 max_code: window_hi,
             },

@@ -6,7 +6,7 @@
 //! | bridge enable (EN) | PA9 | TIM1_CH2 (AF1) | low = coast; a timer output, so that it drops with the timer's main output (break, debugger halt, fault handlers) |
 //! | bridge direction (PH) | PA10 | TIM1_CH3 (AF1) | high = forward; a timer output, so that it changes with the duty at the period boundary |
 //! | bridge fault (BKIN) | PB12 | TIM1_BKIN (AF1) | active low: the driver's fault output and the current comparator, open drain, wired together |
-//! | position sensor | PC0 | ADC123_IN10 | 5-95 % of the range over the stroke ([`ema::sense::POSITION_M_PER_CODE`]) |
+//! | position sensor | PC0 | ADC123_IN10 | the span within the range, room left at both ends for the sensor's tolerance ([`ema::actuator::Actuator::calibration`]) |
 //! | coil current | PC1 | ADC123_IN11 | bidirectional, mid-scale at 0 A ([`ema::sense::CURRENT_A_PER_CODE`]) |
 //! | bus voltage | PC2 | ADC123_IN12 | 22:1 divider ([`ema::sense::VBUS_V_PER_CODE`]) |
 //! | bench link TX | PA2 | USART2_TX (AF7), DMA1 stream 6 | [`ema::protocol::BAUD`] 8N1, 3.3 V levels, to any USB-serial adapter's RX |

@@ -40,7 +40,11 @@
 //! 1. **open stop**: the coil off; once the armature has come back and rests (the wait is
 //!    [`RELEASE_PERIODS`] of the slowest mechanical period the identification admits,
 //!    `2 pi / w_n` with the spring and the mass [`SPREAD`] off the file), the reading is
-//!    averaged over a window in which it stays still;
+//!    averaged over a window in which it stays still: its spread within the noise's, and
+//!    the means of its two halves within the noise of such a difference
+//!    ([`Plan::drift_m`]). An overdamped armature with little preload creeps back onto
+//!    the stop, its spring's pull vanishing there, and a creep of ten codes over a
+//!    window hides inside the noise's spread but not from the halves' means;
 //! 2. **approach**: the voltage ramps over [`RAMP_PERIODS`] mechanical periods to the one
 //!    that holds [`FULL_SHARE`] of the rated current, slowly against the coil's and the
 //!    armature's time constants: the current follows the ramp, the magnet pulls the
@@ -160,6 +164,12 @@ pub struct Plan {
     /// Largest spread of the position readings over a window with the armature at rest
     /// \[m\] (the sensor's noise): a wider one restarts the window.
     pub still_m: f32,
+    /// Largest difference between the mean positions of a window's two halves with the
+    /// armature at rest \[m\]: [`Plan::still_m`] spans four deviations of the difference
+    /// of two readings, this four of the difference of two half-window means. A larger
+    /// one is a slow creep (an overdamped armature coming back to a stop with little
+    /// preload, well inside the noise's spread) and restarts the window.
+    pub drift_m: f32,
     /// Ticks waited after the coil is switched off before the open stop's window (and at
     /// each hold at the closed stop).
     pub release_ticks: u32,
@@ -293,19 +303,23 @@ impl Plan {
                 None
             }
         };
+        let average_ticks = ticks(math::max(AVERAGE_TIME_CONSTANTS * slowest_s, MIN_AVERAGE_S))?;
         Some(Self {
             u_v: [
                 LOW_SHARE * rated_a * resistance_ohm,
                 HIGH_SHARE * rated_a * resistance_ohm,
             ],
             settle_ticks: ticks(settle_s)?,
-            average_ticks: ticks(math::max(AVERAGE_TIME_CONSTANTS * slowest_s, MIN_AVERAGE_S))?,
+            average_ticks,
             abort_a: rated_a,
             period_s: 1.0 / rate_hz,
             skip_readings: u32::from(delay_ticks) + 1,
             guess_factor: [open_inductance_h, closed_inductance_h]
                 .map(|h| libm::expf(-resistance_ohm / (h * rate_hz))),
             still_m,
+            // Half-window means of n/2 readings: their difference deviates sqrt(4/n)
+            // times a reading's, still_m's difference of two readings sqrt(2) times.
+            drift_m: still_m / math::sqrt(2.0 * average_ticks as f32),
             release_ticks: ticks(RELEASE_PERIODS * period_s + settle_s)?,
             ramp_ticks: ticks(RAMP_PERIODS * period_s)?,
             patience_ticks: ticks(PATIENCE_PERIODS * period_s)?,
@@ -545,6 +559,9 @@ struct Window {
     x: Moments,
     x_min: f32,
     x_max: f32,
+    /// The position's sum of deviations and the count at the window's half.
+    x_half: f32,
+    n_half: u32,
 }
 
 /// Running sums of one reading's deviations from the window's first.
@@ -588,6 +605,8 @@ impl Window {
         x: Moments::EMPTY,
         x_min: 0.0,
         x_max: 0.0,
+        x_half: 0.0,
+        n_half: 0,
     };
 
     fn add(&mut self, u_v: f32, m: &Measurement) {
@@ -618,6 +637,21 @@ impl Window {
     /// Mean position and the variance of that mean.
     fn position(&self) -> (f32, f32) {
         self.x.mean(self.n())
+    }
+
+    /// Marks the window's half.
+    fn halve(&mut self) {
+        self.x_half = self.x.sum;
+        self.n_half = self.n;
+    }
+
+    /// The second half's mean position less the first's \[m\] (zero before the half).
+    fn drift(&self) -> f32 {
+        if self.n_half == 0 || self.n <= self.n_half {
+            return 0.0;
+        }
+        let second = (self.x.sum - self.x_half) / (self.n - self.n_half) as f32;
+        second - self.x_half / self.n_half as f32
     }
 }
 
@@ -865,9 +899,13 @@ impl Identification {
                 // it ends a whole period of the hold's own voltage (a drive takes effect
                 // one period after it is set).
                 self.window.add(applied_v, m);
+                if self.tick == wait.saturating_add(self.plan.average_ticks / 2) {
+                    self.window.halve();
+                }
             }
             if self.tick > wait.saturating_add(self.plan.average_ticks) {
-                let moved = self.window.x_max - self.window.x_min > self.plan.still_m;
+                let moved = self.window.x_max - self.window.x_min > self.plan.still_m
+                    || self.window.drift().abs() > self.plan.drift_m;
                 let rest = self.phase.rest();
                 let patient = self.restarts.saturating_add(self.plan.average_ticks)
                     <= self.plan.patience_ticks;
@@ -1208,6 +1246,26 @@ mod tests {
             assert!((h / 0.02 - 1.0).abs() < 3e-3, "{got:?}");
         }
         assert!(peak < 0.96 * 4.0, "{peak} A");
+    }
+
+    #[test]
+    fn an_armature_creeping_back_onto_the_open_stop_is_read_once_there() {
+        // 200 to 400 N s/m: damping ratios of 1.6 to 3.2, the slow mode creeping back with
+        // a time constant of 44 to 98 ms onto a stop where the spring no longer pulls.
+        // Released from the first two steps' pull, the armature is still 5 to 11 um off
+        // the stop when the reading's spread first stays within the noise's (10 um here).
+        let open_m = [200.0, 300.0, 400.0, 600.0].map(|friction| {
+            let mut creeping = Rig::coil(2.0);
+            creeping.friction = friction;
+            creeping.run().0.map(|got| got.ends.open_m)
+        });
+        let [a, b, c, slowest] = open_m;
+        assert!(
+            [a, b, c].iter().all(|x| x.is_ok_and(|x| x.abs() < 1e-6)),
+            "{open_m:?}"
+        );
+        // A creep slower than the patience is named, not read short of the stop.
+        assert_eq!(slowest, Err(Abort::NotAtRest), "{open_m:?}");
     }
 
     #[test]

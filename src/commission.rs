@@ -647,10 +647,11 @@ impl Window {
 
     /// The second half's mean position less the first's \[m\] (zero before the half).
     fn drift(&self) -> f32 {
-        if self.n_half == 0 || self.n <= self.n_half {
+        let second_n = self.n.saturating_sub(self.n_half);
+        if self.n_half == 0 || second_n == 0 {
             return 0.0;
         }
-        let second = (self.x.sum - self.x_half) / (self.n - self.n_half) as f32;
+        let second = (self.x.sum - self.x_half) / second_n as f32;
         second - self.x_half / self.n_half as f32
     }
 }

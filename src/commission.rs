@@ -165,10 +165,10 @@ pub struct Plan {
     /// \[m\] (the sensor's noise): a wider one restarts the window.
     pub still_m: f32,
     /// Largest difference between the mean positions of a window's two halves with the
-    /// armature at rest \[m\]: [`Plan::still_m`] spans four deviations of the difference
-    /// of two readings, this four of the difference of two half-window means. A larger
-    /// one is a slow creep (an overdamped armature coming back to a stop with little
-    /// preload, well inside the noise's spread) and restarts the window.
+    /// armature at rest \[m\]: four deviations of that difference, as [`Plan::still_m`]
+    /// is twice four deviations of the difference of two readings. A larger one is a slow
+    /// creep (an overdamped armature coming back to a stop with little preload, well
+    /// inside the noise's spread) and restarts the window.
     pub drift_m: f32,
     /// Ticks waited after the coil is switched off before the open stop's window (and at
     /// each hold at the closed stop).
@@ -317,8 +317,9 @@ impl Plan {
             guess_factor: [open_inductance_h, closed_inductance_h]
                 .map(|h| libm::expf(-resistance_ohm / (h * rate_hz))),
             still_m,
-            // Half-window means of n/2 readings: their difference deviates sqrt(4/n)
-            // times a reading's, still_m's difference of two readings sqrt(2) times.
+            // still_m is 8 deviations of a two-reading difference (sqrt 2 of a reading's);
+            // two half-window means of n/2 readings differ with sqrt(4/n) of a reading's:
+            // four of those are still_m / sqrt(2 n).
             drift_m: still_m / math::sqrt(2.0 * average_ticks as f32),
             release_ticks: ticks(RELEASE_PERIODS * period_s + settle_s)?,
             ramp_ticks: ticks(RAMP_PERIODS * period_s)?,

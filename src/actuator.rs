@@ -584,11 +584,12 @@ impl Actuator {
         // Below the zero and above the span's end, room for an offset and a gain error of
         // the tolerance each (2 T of the span) and the noise's reach, inside the window.
         let room = 2.0 * POSITION_SENSOR_TOLERANCE;
-        let edge = f32::from(RAIL_MARGIN_CODES) + NOISE_SIGMAS * NOISE_RMS_CODES;
-        let span_codes = (full - 2.0 * edge) / (1.0 + 2.0 * room);
+        let reach = NOISE_SIGMAS * NOISE_RMS_CODES;
+        let inside = f32::from(window_hi) - f32::from(window_lo) - 2.0 * reach;
+        let span_codes = inside / (1.0 + 2.0 * room);
         Calibration {
             position: Channel {
-                offset_code: edge + room * span_codes,
+                offset_code: f32::from(window_lo) + reach + room * span_codes,
                 scale: b.position_span_m / span_codes,
                 min_code: window_lo,
                 max_code: window_hi,

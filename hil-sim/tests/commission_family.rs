@@ -53,3 +53,45 @@ fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
     eprintln!("seed {PRODUCT_SEED:#x}: {draw:?}\n{c:?}");
     assert_eq!(c.misses(), Vec::<&str>::new(), "{c:?}");
 }
+
+/// A position sensor at the corners of its tolerance
+/// ([`ema::actuator::POSITION_SENSOR_TOLERANCE`] in offset and in gain, the same way) reads
+/// inside the converter's plausible window at both stops on every member, the noise's reach
+/// ([`ema::actuator::NOISE_SIGMAS`] deviations) included; and the product with such a
+/// sensor is commissioned, its stops read within 2 codes.
+#[test]
+fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commissioned() {
+    let t = ema::actuator::POSITION_SENSOR_TOLERANCE;
+    let reach = ema::actuator::NOISE_SIGMAS * ema::sense::NOISE_RMS_CODES;
+    for e in &hil_sim::actuator::FAMILY {
+        let (name, a) = hil_sim::actuator::load(e.name).unwrap();
+        let ch = a.calibration().position;
+        let stroke = a.mechanics.stroke_m;
+        for sign in [-1.0_f32, 1.0] {
+            let (gain, offset_m) = (sign * t, sign * t * stroke);
+            for x in [0.0, stroke] {
+                let code = ch.offset_code + (x * (1.0 + gain) + offset_m) / ch.scale;
+                // The corners land on the window's edges: a thousandth of a code for f32.
+                assert!(
+                    code - reach >= f32::from(ch.min_code) - 1e-3
+                        && code + reach <= f32::from(ch.max_code) + 1e-3,
+                    "{name}: {code} at {x} m, window {ch:?}"
+                );
+            }
+        }
+    }
+    let (_, a) = hil_sim::actuator::load("product").unwrap();
+    let file_share = f64::from(a.mechanics.preload_n)
+        / f64::from(a.mechanics.spring_n_per_m * a.mechanics.stroke_m);
+    let corner = hil_sim::commissioning::Draw {
+        factors: [1.0; 5],
+        preload_share: file_share,
+        gain_error: f64::from(t),
+        offset_share: f64::from(t),
+    };
+    let o = hil_sim::commissioning::run(&a, Some(&corner)).unwrap();
+    let Some([_, _, _, open, closed]) = o.errors() else {
+        panic!("commissioning stopped: {:?}", o.report)
+    };
+    assert!(open < 2.0 && closed < 2.0, "{o:?}");
+}

@@ -16,7 +16,7 @@ use rand::Rng;
 use crate::bench::board::scenario;
 use crate::hal::{self, Adc};
 use crate::plant::Params;
-use crate::scenario::{Sensors, TruePlant};
+use crate::scenario::{Scenario, Sensors, TruePlant};
 use crate::sim::Stepper;
 use crate::targets::{Targets, Worst};
 use crate::Error;
@@ -151,9 +151,13 @@ impl Outcome {
 /// # Errors
 /// An actuator whose settings do not derive.
 pub fn true_plant(a: &Actuator, draw: Option<&Draw>) -> Result<Params, Error> {
-    let sc = scenario(a, true)?;
+    Ok(plant_of(&scenario(a, true)?, draw))
+}
+
+/// The plant of the board scenario `sc`, or `draw`n from it.
+fn plant_of(sc: &Scenario, draw: Option<&Draw>) -> Params {
     let file = sc.plant.resolve(&sc.controller.plant);
-    Ok(draw.map_or_else(|| file.clone(), |d| d.apply(&file)))
+    draw.map_or_else(|| file.clone(), |d| d.apply(&file))
 }
 
 /// Plants a tuning is validated on in [`closed_loop`] (the tune command's default is 100:
@@ -225,7 +229,7 @@ pub fn closed_loop(a: &Actuator, report: &Report, plant: &Params) -> Result<Clos
 /// An actuator whose settings do not derive.
 pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
     let sc = scenario(a, true)?;
-    let plant = true_plant(a, draw)?;
+    let plant = plant_of(&sc, draw);
     let mut stepper = Stepper::for_scenario(&sc, plant.clone(), sc.integration.substeps)?;
     let mut converter = match &sc.sensors {
         Sensors::Adc(adc) => adc.start(&sc.controller.sense),

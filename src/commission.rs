@@ -4,7 +4,12 @@
 //! temperature move it by tens of per cent, and the law's current loop, the residual
 //! detector's bounds and the thermal model all start from it. The first measurement is
 //! therefore the coil's resistance, with the loop open; the second, the position sensor's
-//! readings at the two end stops.
+//! readings at the two end stops. The spring's rate and preload, which no open-loop pull
+//! isolates (the magnet's stiffness exceeds the spring's near the closed stop, so the
+//! armature jumps to a stop), are measured afterwards with the loop closed: the host tool
+//! holds the armature at four positions over the link and reads the magnet's pull at each
+//! from the captured current and the inductances measured here (`hil-sim bench commission
+//! --spring`).
 //!
 //! # The coil's resistance
 //!

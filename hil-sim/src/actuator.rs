@@ -201,6 +201,20 @@ pub fn pwm_full_scale(rate_hz: f64) -> u16 {
 /// The firmware's PWM timer clock (TIM1 at 168 MHz) \[Hz\].
 pub const TIMER_CLOCK_HZ: f64 = 168e6;
 
+/// How long each position of the [`SEQUENCE`] over `stroke_m` is held with `controller`:
+/// the slowest move's settling target plus twice the steady window, in whole milliseconds
+/// (so the step times fall on ticks at any usual rate) \[s\].
+#[must_use]
+pub fn segment_s(controller: &ema::control::Settings, stroke_m: f64) -> f64 {
+    let at = |k: usize| SEQUENCE.get(k).map_or(0.0, |f| f * stroke_m);
+    let segment_s = (1..SEQUENCE.len())
+        .map(|k| settling_target_s(controller, at(k - 1), at(k)))
+        .fold(0.0, f64::max)
+        + 2.0 * STEADY_WINDOW_S;
+    // (Excess below a microsecond is the f32 rounding of the targets.)
+    (segment_s * 1e3 - 1e-3).ceil() / 1e3
+}
+
 /// The scenario an actuator is judged on (see the module documentation): rest at the
 /// open stop, then the [`SEQUENCE`] of positions, each held for its settling target plus
 /// the steady window and 50 ms.
@@ -211,13 +225,7 @@ pub fn scenario(name: &str, act: &Actuator) -> Result<Scenario, Error> {
     let controller = act.settings().map_err(Error::Actuator)?;
     let stroke = f64::from(act.mechanics.stroke_m);
     let at = |k: usize| SEQUENCE.get(k).map_or(0.0, |f| f * stroke);
-    let segment_s = (1..SEQUENCE.len())
-        .map(|k| settling_target_s(&controller, at(k - 1), at(k)))
-        .fold(0.0, f64::max)
-        + 2.0 * STEADY_WINDOW_S;
-    // Whole milliseconds, so the step times fall on ticks at any usual rate.
-    // (Excess below a microsecond is the f32 rounding of the targets.)
-    let segment_s = (segment_s * 1e3 - 1e-3).ceil() / 1e3;
+    let segment_s = segment_s(&controller, stroke);
     #[allow(clippy::cast_precision_loss)]
     let steps = (1..SEQUENCE.len())
         .map(|k| StepAt {

@@ -7,6 +7,12 @@
 //! What is judged against the plant's own values: the resistance, the inductance at both
 //! stops (the plant's fringing included), the position readings at both stops (the drawn
 //! sensor's gain and offset included), the largest true coil current, the actuator time.
+//!
+//! The spring is measured after the routine, the loop closed ([`spring`]): the host tool
+//! holds the armature at four positions through the board's link (`bench commission
+//! --spring`) and reads the magnet's pull at each from the captured current and the
+//! measured inductances ([`fit_spring`], the same fit on the bench and here). Not yet
+//! measured: the mass and the friction.
 
 use ema::actuator::Actuator;
 use ema::bridge::HBridge;
@@ -51,6 +57,13 @@ impl Draw {
         }
     }
 
+    /// The position sensor's gain error \[-\] and offset \[code\] for a stroke of `stroke_m`
+    /// read in codes of `code_m`.
+    #[must_use]
+    pub fn position_error(&self, stroke_m: f64, code_m: f64) -> (f64, f64) {
+        (self.gain_error, self.offset_share * stroke_m / code_m)
+    }
+
     /// `plant` (the file's) drawn.
     #[must_use]
     pub fn apply(&self, plant: &Params) -> Params {
@@ -72,8 +85,8 @@ pub const IRON_SHARE: f32 = 0.01;
 
 /// The actuator a commissioning measured: `file` (the board's) with the measured
 /// resistance and the two inductances (the magnetic circuit in its two-inductance form),
-/// the tuning dropped (it was for another actuator); and the factor both inductances were
-/// moved by.
+/// the `spring` when measured ([`spring`]), the tuning dropped (it was for another
+/// actuator); and the factor both inductances were moved by.
 ///
 /// The file's form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the iron's
 /// `rho_0` positive. A real circuit's fringing bends the line (the surface grows with the
@@ -83,10 +96,21 @@ pub const IRON_SHARE: f32 = 0.01;
 ///
 /// # Errors
 /// Measured values no actuator can have (the actuator does not validate).
-pub fn measured(file: &Actuator, report: &Report) -> Result<(Actuator, f32), Error> {
+pub fn measured(
+    file: &Actuator,
+    report: &Report,
+    spring: Option<&Spring>,
+) -> Result<(Actuator, f32), Error> {
     let l = report.inductance;
     let mut a = *file;
     a.coil.resistance_ohm = report.resistance.ohm;
+    if let Some(s) = spring {
+        #[allow(clippy::cast_possible_truncation)]
+        {
+            a.mechanics.spring_n_per_m = s.n_per_m as f32;
+            a.mechanics.preload_n = s.preload_n as f32;
+        }
+    }
     let (g_open, g_closed) = (
         a.mechanics.residual_gap_m + a.mechanics.stroke_m,
         a.mechanics.residual_gap_m,
@@ -106,6 +130,134 @@ pub fn measured(file: &Actuator, report: &Report) -> Result<(Actuator, f32), Err
     a.tuning = None;
     a.plant().map_err(Error::Actuator)?;
     Ok((a, moved))
+}
+
+/// Share of each hold of [`spring`] averaged: its end, once the move and its settling are
+/// over (the hold lasts the move's settling target plus twice the steady window).
+pub const HOLD_WINDOW_SHARE: f64 = 0.4;
+
+/// The spring measured by [`spring`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spring {
+    /// Rate \[N/m\].
+    pub n_per_m: f64,
+    /// Preload at the open stop \[N\] (a fit below zero, a spring without preload read
+    /// through the noise, is taken as none).
+    pub preload_n: f64,
+    /// Two standard errors of the rate, from the fit's residuals \[N/m\].
+    pub spread_n_per_m: f64,
+    /// The holds: corrected position \[m\] and mean magnetic force \[N\].
+    pub holds: [(f64, f64); crate::actuator::SEQUENCE.len()],
+}
+
+/// The spring's rate and preload, from the holding force at the four positions of the
+/// actuator's evaluation sequence ([`crate::actuator::SEQUENCE`], 1/8 to 7/8 of the
+/// stroke), the loop closed with the settings the measured actuator derives ([`measured`],
+/// the file's spring, the default tuning) on the `plant`, its position sensor `draw`n;
+/// each hold lasts as in the evaluation sequence, its settling target and twice the steady
+/// window. The fit is [`fit_spring`]'s.
+///
+/// The loop holds with the default tuning, for the file's mass and spring: on a plant far
+/// from them it may limit-cycle about a hold (a drawn 1 kg plunger), and the holds then
+/// read the spring several per cent off, or a monitor ends them.
+///
+/// `Ok(Err(name))`: the loop latched the fault `name` during the holds, nothing measured.
+///
+/// # Errors
+/// Measured values no actuator can have; settings that do not derive.
+pub fn spring(
+    a: &Actuator,
+    report: &Report,
+    plant: &Params,
+    draw: Option<&Draw>,
+) -> Result<Result<Spring, &'static str>, Error> {
+    let (m, _) = measured(a, report, None)?;
+    let mut sc = crate::actuator::scenario("holds", &m)?;
+    sc.plant = TruePlant::Given(plant.clone());
+    let code_m = f64::from(sc.controller.sense.position.scale);
+    if let (Sensors::Adc(adc), Some(d)) = (&mut sc.sensors, draw) {
+        (adc.position.gain_error, adc.position.offset_code) =
+            d.position_error(plant.stroke_m, code_m);
+    }
+    let run = crate::sim::run(&sc)?;
+    if let Some(f) = run.samples.iter().find_map(|s| s.fault) {
+        return Ok(Err(f.name()));
+    }
+    #[allow(clippy::cast_precision_loss)]
+    let segment_s = sc.duration_s / crate::actuator::SEQUENCE.len() as f64;
+    let holds = core::array::from_fn(|k| {
+        #[allow(clippy::cast_precision_loss)]
+        let end_s = segment_s * (k + 1) as f64;
+        let from_s = end_s - HOLD_WINDOW_SHARE * segment_s;
+        run.samples
+            .iter()
+            .filter(|q| q.t_s >= from_s && q.t_s < end_s)
+            .map(|q| (q.x_meas_m, q.i_meas_a))
+            .collect::<Vec<_>>()
+    });
+    Ok(Ok(fit_spring(
+        report,
+        f64::from(m.mechanics.stroke_m),
+        &holds,
+    )))
+}
+
+/// The spring's rate and preload from the readings `(position [m], current [A])` of each
+/// hold's window (the armature at rest, the loop holding it), the commissioning's
+/// `report` and the `stroke_m`.
+///
+/// At rest the magnet's pull equals the spring's, `K x + F0`. The pull is
+/// `F = i^2 L(x)^2 s / 2` with `1/L` linear in the gap through the two measured
+/// inductances, `s` its slope (the force of the two-inductance form). Each reading's
+/// position is corrected with the measured end stops, `x = stroke (y - y_open) /
+/// (y_closed - y_open)`, the force is averaged reading by reading over each window, and
+/// `K` and `F0` are the least squares line through the holds.
+#[must_use]
+pub fn fit_spring(
+    report: &Report,
+    stroke_m: f64,
+    holds: &[Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()],
+) -> Spring {
+    let (open, closed) = (
+        f64::from(report.ends.open_m),
+        f64::from(report.ends.closed_m),
+    );
+    let (inv_open, inv_closed) = (
+        1.0 / f64::from(report.inductance.open_h),
+        1.0 / f64::from(report.inductance.closed_h),
+    );
+    let slope = (inv_open - inv_closed) / stroke_m;
+    let force = |y: f64, i: f64| {
+        let x = (stroke_m * (y - open) / (closed - open)).clamp(0.0, stroke_m);
+        let inv_l = inv_closed + (stroke_m - x) * slope;
+        (x, 0.5 * i * i * slope / (inv_l * inv_l))
+    };
+    let means = holds.each_ref().map(|w| {
+        let (sx, sf) = w.iter().fold((0.0, 0.0), |(sx, sf), &(y, i)| {
+            let (x, f) = force(y, i);
+            (sx + x, sf + f)
+        });
+        #[allow(clippy::cast_precision_loss)]
+        let n = w.len() as f64;
+        (sx / n, sf / n)
+    });
+    #[allow(clippy::cast_precision_loss)]
+    let n = means.len() as f64;
+    let mx = means.iter().map(|h| h.0).sum::<f64>() / n;
+    let mf = means.iter().map(|h| h.1).sum::<f64>() / n;
+    let sxx: f64 = means.iter().map(|h| (h.0 - mx).powi(2)).sum();
+    let k = means.iter().map(|h| (h.0 - mx) * (h.1 - mf)).sum::<f64>() / sxx;
+    let preload = mf - k * mx;
+    let residual: f64 = means
+        .iter()
+        .map(|h| (h.1 - preload - k * h.0).powi(2))
+        .sum();
+    Spring {
+        n_per_m: k,
+        preload_n: preload.max(0.0),
+        spread_n_per_m: 2.0 * (residual / (n - 2.0) / sxx).sqrt(),
+        holds: means,
+    }
 }
 
 /// One commissioning and what it is judged against.
@@ -190,16 +342,21 @@ impl ClosedLoop {
     }
 }
 
-/// Tunes the actuator `report` measured on file `a` ([`measured`]) at the board's rate,
-/// as `bench commission --tune` does, and runs its evaluation sequence on the true
+/// Tunes the actuator `report` (and `spring`, when measured) measured on file `a`
+/// ([`measured`]) at the board's rate, as `bench commission --tune` does, and runs its evaluation sequence on the true
 /// `plant`, the converter with its typical noise but no gain or offset error (the end
 /// stops are not yet applied to the calibration, so a sensor's own error would stay in
 /// the position).
 ///
 /// # Errors
 /// Measured values no actuator can have; settings that do not derive.
-pub fn closed_loop(a: &Actuator, report: &Report, plant: &Params) -> Result<ClosedLoop, Error> {
-    let (m, _) = measured(a, report)?;
+pub fn closed_loop(
+    a: &Actuator,
+    report: &Report,
+    spring: Option<&Spring>,
+    plant: &Params,
+) -> Result<ClosedLoop, Error> {
+    let (m, _) = measured(a, report, spring)?;
     let rate = f64::from(a.board.rate_hz);
     let space = crate::tune::Space::for_actuator(&m, rate)?;
     let tuned = crate::tune::tune(
@@ -237,9 +394,7 @@ pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
     };
     let position = sc.controller.sense.position;
     let code_m = f64::from(position.scale);
-    let (gain, offset_code) = draw.map_or((0.0, 0.0), |d| {
-        (d.gain_error, d.offset_share * plant.stroke_m / code_m)
-    });
+    let (gain, offset_code) = draw.map_or((0.0, 0.0), |d| d.position_error(plant.stroke_m, code_m));
     converter.set_position_error(gain, offset_code);
     let (pwm, dir, en, lines) = hal::bridge_io(sc.bridge.max_duty);
     let Ok(mut bridge) = HBridge::new(pwm, dir, en);

@@ -8,9 +8,10 @@
 //! to 3 % of the stroke in offset and in gain have their end stops found within 2 codes,
 //! never above the rated current and within 10 s; a coil open or shorted, a sensor wired
 //! backwards, a jammed armature and a broken spring each end it by name; a disarm stops a
-//! commissioning; an armed board refuses one. An actuator off its file, commissioned,
-//! tuned and applied by the host tool, is saved on the board in the board's own form and
-//! meets the targets on a step.
+//! commissioning; an armed board refuses one. An actuator off its file (coil, circuit and
+//! spring), commissioned, its spring measured from closed-loop holds, tuned and applied by
+//! the host tool, is saved on the board in the board's own form and meets the targets on a
+//! step.
 
 #[path = "common/rig.rs"]
 mod rig;
@@ -51,6 +52,7 @@ impl Commissioning for Rig {
         let args = CommissionArgs {
             apply: false,
             tune: false,
+            spring: false,
             timeout_s: 60.0,
             out: None,
         };
@@ -332,6 +334,7 @@ fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
     let args = CommissionArgs {
         apply: false,
         tune: false,
+        spring: false,
         timeout_s: 60.0,
         out: Some(path.clone()),
     };
@@ -363,9 +366,21 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
         noise: true,
         ..Options::default()
     });
-    // Not the file's actuator: a coil 15 % above its resistance, surfaces 15 % smaller.
+    // Not the file's actuator: a coil 15 % above its resistance, surfaces 15 % smaller, a
+    // spring 25 % stiffer with a preload of a tenth of its force over the stroke.
     rig.coil(1.15 * f64::from(Actuator::PRODUCT.coil.resistance_ohm));
     rig.inject.send(Injection::Surfaces(0.85)).unwrap();
+    let mech = Actuator::PRODUCT.mechanics;
+    let spring_n_per_m = 1.25 * f64::from(mech.spring_n_per_m);
+    let preload_n = 0.1 * spring_n_per_m * f64::from(mech.stroke_m);
+    rig.inject
+        .send(Injection::Mechanics {
+            mass_kg: f64::from(mech.mass_kg),
+            spring_n_per_m,
+            preload_n,
+            friction_n_s_per_m: f64::from(mech.friction_n_s_per_m),
+        })
+        .unwrap();
     rig.status();
     let dir = std::env::temp_dir().join(format!("ema-tuned-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -373,11 +388,14 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     let args = CommissionArgs {
         apply: true,
         tune: true,
+        spring: true,
         timeout_s: 60.0,
         out: Some(path.clone()),
     };
     let mut printed = Vec::new();
-    let got = cli::commission(&mut rig.link, &args, &mut printed).unwrap();
+    let got = cli::commission(&mut rig.link, &args, &mut printed);
+    eprintln!("{}", String::from_utf8(printed.clone()).unwrap());
+    let got = got.unwrap();
     let printed = String::from_utf8(printed).unwrap();
     let read = |p: &std::path::Path| {
         let text = std::fs::read_to_string(p).unwrap();
@@ -419,6 +437,20 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     }
     assert_eq!(board.tuning, tuned.tuning);
     assert!(board.tuning.is_some());
+    // The spring measured from the closed-loop holds: its rate within 5 %, its preload
+    // within 2 % of its force over the stroke; stored on the board.
+    let k = f64::from(board.mechanics.spring_n_per_m);
+    let f0 = f64::from(board.mechanics.preload_n);
+    eprintln!("spring {k} N/m (plant {spring_n_per_m}), preload {f0} N (plant {preload_n})");
+    assert!((k / spring_n_per_m - 1.0).abs() < 0.05, "{k}\n{printed}");
+    assert!(
+        (f0 - preload_n).abs() < 0.02 * spring_n_per_m * f64::from(mech.stroke_m),
+        "{f0}\n{printed}"
+    );
+    assert_eq!(
+        board.mechanics.spring_n_per_m,
+        measured.mechanics.spring_n_per_m
+    );
     // Closed on the actuator it was commissioned on: a step to 3 mm meets the targets
     // (2 % settling within 0.2 s, overshoot at most 0.5 %, steady error at most 0.1 %).
     rig.link.done(Command::Arm).unwrap();

@@ -49,7 +49,7 @@ fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
     let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
     let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
-    let c = hil_sim::commissioning::closed_loop(&a, &report, &plant).unwrap();
+    let c = hil_sim::commissioning::closed_loop(&a, &report, None, &plant).unwrap();
     eprintln!("seed {PRODUCT_SEED:#x}: {draw:?}\n{c:?}");
     assert_eq!(c.misses(), Vec::<&str>::new(), "{c:?}");
 }
@@ -94,4 +94,42 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
         panic!("commissioning stopped: {:?}", o.report)
     };
     assert!(open < 2.0 && closed < 2.0, "{o:?}");
+}
+
+/// Seed of the plants whose spring is measured.
+const SPRING_SEED: u64 = 0x5b71_0000_0000_0013;
+
+/// The spring's rate within 5 % and its preload within 2 % of the spring's force over the
+/// stroke, measured from the closed-loop holds ([`hil_sim::commissioning::spring`]) on
+/// drawn products and valves (sensor offset and gain errors included, corrected by the
+/// measured end stops).
+#[test]
+fn the_spring_and_its_preload_are_measured_from_closed_loop_holds() {
+    use rand::SeedableRng;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(SPRING_SEED);
+    eprintln!("seed {SPRING_SEED:#x}");
+    for name in ["product", "valve"] {
+        let (_, a) = hil_sim::actuator::load(name).unwrap();
+        for _ in 0..6 {
+            let draw = hil_sim::commissioning::Draw::new(&mut rng);
+            let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
+            let report = o.report.unwrap();
+            let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
+            let s = hil_sim::commissioning::spring(&a, &report, &plant, Some(&draw))
+                .unwrap()
+                .unwrap();
+            let k = s.n_per_m / plant.spring_n_per_m - 1.0;
+            let f0 = (s.preload_n - plant.preload_n) / (plant.spring_n_per_m * plant.stroke_m);
+            eprintln!(
+                "{name}: K {:.2} N/m ({:+.2} %, +- {:.2}), preload {:.4} N ({:+.2} % of K x stroke); {draw:?}",
+                s.n_per_m,
+                100.0 * k,
+                s.spread_n_per_m,
+                s.preload_n,
+                100.0 * f0
+            );
+            assert!(k.abs() < 0.05, "{name}: {s:?}, plant {plant:?}");
+            assert!(f0.abs() < 0.02, "{name}: {s:?}, plant {plant:?}");
+        }
+    }
 }

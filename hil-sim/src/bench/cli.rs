@@ -35,6 +35,7 @@ use serialport::SerialPort;
 use super::board::{Injection, Options, VirtualBoard};
 use super::link::Link;
 use super::{fault_name, Capture};
+use crate::commissioning::Spring;
 use crate::report::{self, sig, Figure, Panel, Series, Table};
 
 /// The link's speed \[baud\]: one definition, the core's, which the firmware's UART uses.
@@ -119,6 +120,13 @@ pub struct CommissionArgs {
     /// `<stem>-tune/`, `<stem>/`).
     #[arg(long, requires = "out")]
     pub tune: bool,
+    /// Then measures the spring's rate and preload: the loop closed with the measured coil
+    /// and circuit and the default tuning (for the holds only, then put back), the armature held at 1/8, 7/8,
+    /// 3/8 and 3/4 of the stroke, the magnet's pull at each hold read from the captured
+    /// current (the board drives the coil and the armature moves). `--out` writes the
+    /// spring, `--tune` tunes for it and `--apply` sets it.
+    #[arg(long)]
+    pub spring: bool,
     /// Longest wait for the result (s).
     #[arg(long, default_value_t = 60.0)]
     pub timeout_s: f64,
@@ -416,11 +424,16 @@ pub fn commission<P: std::io::Read + Write>(
         1e6 * travel_m,
         1e6 * stroke_m
     )?;
+    let spring = if args.spring {
+        Some(measure_spring(link, &file, &report, out)?)
+    } else {
+        None
+    };
     if let Some(path) = &args.out {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             report::create_dir(dir)?;
         }
-        std::fs::write(path, actuator_file(&file, &report)?)
+        std::fs::write(path, actuator_file(&file, &report, spring.as_ref())?)
             .map_err(|e| anyhow!("{}: {e}", path.display()))?;
         writeln!(out, "actuator file written: {}", path.display())?;
     }
@@ -482,12 +495,159 @@ pub fn commission<P: std::io::Read + Write>(
     Ok(report)
 }
 
+/// Measures the spring ([`crate::commissioning::fit_spring`]) on the board: sets the
+/// actuator `report` measured on the board's `file` with the default tuning (not stored),
+/// arms, captures a move to each position of [`crate::actuator::SEQUENCE`] held as in the
+/// evaluation sequence, disarms and puts the parameters in use before back (the stored
+/// set, or the built-in defaults). A fault during the holds ends it, named.
+///
+/// # Errors
+/// A refusal, no reply, a fault during the holds, a capture that does not finish.
+fn measure_spring<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    file: &Actuator,
+    report: &Report,
+    out: &mut dyn Write,
+) -> anyhow::Result<Spring> {
+    let (m, _) = crate::commissioning::measured(file, report, None)?;
+    let tuning = m.tuning_or_default().map_err(|e| anyhow!("{e}"))?;
+    let settings = m.settings().map_err(|e| anyhow!("{e}"))?;
+    let stroke_m = f64::from(m.mechanics.stroke_m);
+    let rate_hz = f64::from(m.board.rate_hz);
+    let hold_s = crate::actuator::segment_s(&settings, stroke_m);
+    let capacity = u16::try_from(ema::device::CAPTURE_CAPACITY).unwrap_or(u16::MAX);
+    let ticks = (hold_s * rate_hz / f64::from(capacity)).ceil();
+    let decimation = if ticks >= f64::from(u16::MAX) {
+        u16::MAX
+    } else {
+        ticks as u16
+    };
+    let mut sets: Vec<(&str, Value)> = commissioned_params(file, &m)?
+        .into_iter()
+        .map(|(k, v)| (k, Value::Number(v)))
+        .collect();
+    sets.extend([
+        ("tuning.alpha_per_s", Value::Number(tuning.alpha_per_s)),
+        (
+            "tuning.observer_rad_s",
+            Value::Number(tuning.observer_rad_s),
+        ),
+        ("tuning.margin", Value::Number(tuning.margin)),
+        (
+            "tuning.disturbance_follows_force",
+            Value::Flag(tuning.disturbance_follows_force),
+        ),
+    ]);
+    writeln!(
+        out,
+        "spring: the loop closed with the measured coil and circuit, default tuning; holds of {} s at {}",
+        sig(hold_s, 3),
+        crate::actuator::SEQUENCE.map(|f| format!("{} mm", sig(f * stroke_m * 1e3, 3))).join(", ")
+    )?;
+    let stored = matches!(status(link)?.params, ema::protocol::Source::Stored);
+    let mut held = || -> anyhow::Result<[Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()]> {
+        for (name, value) in &sets {
+            link.done(Command::Set {
+                name,
+                value: *value,
+            })?;
+        }
+        // The holds start from the open stop, as the evaluation sequence does: the
+        // armature comes back there once the commissioning's last hold lets go.
+        let (open_m, still_m) = (
+            report.ends.open_m,
+            SPRING_START_SHARE * m.mechanics.stroke_m,
+        );
+        let deadline = Instant::now() + Duration::from_secs(10);
+        let mut near = 0;
+        while near < 5 {
+            ensure!(
+                Instant::now() < deadline,
+                "the armature did not come back to the open stop within 10 s"
+            );
+            near = if (status(link)?.x_m - open_m).abs() < still_m {
+                near + 1
+            } else {
+                0
+            };
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        link.done(Command::Arm)?;
+        let mut holds: [Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()] = Default::default();
+        for (hold, f) in holds.iter_mut().zip(crate::actuator::SEQUENCE) {
+            #[allow(clippy::cast_possible_truncation)]
+            let c = capture_move(
+                link,
+                capacity,
+                decimation,
+                (f * stroke_m) as f32,
+                None,
+                rate_hz,
+            )?;
+            if let Some(s) = c.samples.iter().find(|s| s.fault != 0) {
+                bail!(
+                    "fault {} latched during the hold at {} mm",
+                    fault_name(s.fault),
+                    sig(f * stroke_m * 1e3, 3)
+                );
+            }
+            let n = c.samples.len();
+            #[allow(
+                clippy::cast_precision_loss,
+                clippy::cast_possible_truncation,
+                clippy::cast_sign_loss
+            )]
+            let from = ((1.0 - crate::commissioning::HOLD_WINDOW_SHARE) * n as f64) as usize;
+            *hold = c.samples[from..]
+                .iter()
+                .map(|s| (f64::from(s.x_m), f64::from(s.i_a)))
+                .collect();
+        }
+        Ok(holds)
+    };
+    let holds = held();
+    // Whatever happened: the bridge off and the parameters in use before back.
+    let disarmed = link.done(Command::Disarm);
+    let loaded = link.done(if stored {
+        Command::Load
+    } else {
+        Command::Defaults
+    });
+    let holds = holds?;
+    disarmed?;
+    loaded?;
+    let s = crate::commissioning::fit_spring(report, stroke_m, &holds);
+    for (x, f) in s.holds {
+        writeln!(
+            out,
+            "  hold at {} mm: magnet's pull {} N",
+            sig(x * 1e3, 4),
+            sig(f, 4)
+        )?;
+    }
+    writeln!(
+        out,
+        "spring rate {} N/m +- {} (two standard errors), preload {} N; the file says {} N/m, {} N",
+        sig(s.n_per_m, 4),
+        sig(s.spread_n_per_m, 2),
+        sig(s.preload_n, 4),
+        file.mechanics.spring_n_per_m,
+        file.mechanics.preload_n
+    )?;
+    Ok(s)
+}
+
+/// How near the open stop's reading, as a share of the stroke, the armature must read on
+/// five status polls in a row before [`measure_spring`]'s holds start.
+const SPRING_START_SHARE: f32 = 0.01;
+
 /// Drawn plants `commission --tune` validates the tuning on.
 const TUNE_VALIDATION_DRAWS: usize = 100;
 
 /// The parameters that carry a commissioned actuator `measured` (its magnetic circuit in
-/// the two-inductance form) on a board whose file is `board`: the resistance, and the
-/// magnetic circuit in the board's own form (its kind is fixed by the firmware build).
+/// the two-inductance form) on a board whose file is `board`: the resistance, the spring
+/// and its preload, and the magnetic circuit in the board's own form (its kind is fixed by
+/// the firmware build).
 /// In the geometry form without spread, `1/L` is linear in the gap as in the measured
 /// one: the pole's sides are scaled for the measured airgap reluctance (the fringing
 /// coefficient kept) and the iron's reluctance set to the measured one.
@@ -503,7 +663,14 @@ pub fn commissioned_params(
     let Magnetics::Inductance { open_h, closed_h } = measured.magnetics else {
         bail!("the commissioned actuator's circuit is not in the two-inductance form")
     };
-    let mut out = vec![("coil.resistance_ohm", measured.coil.resistance_ohm)];
+    let mut out = vec![
+        ("coil.resistance_ohm", measured.coil.resistance_ohm),
+        (
+            "mechanics.spring_n_per_m",
+            measured.mechanics.spring_n_per_m,
+        ),
+        ("mechanics.preload_n", measured.mechanics.preload_n),
+    ];
     match board.magnetics {
         Magnetics::Inductance { .. } => {
             out.push(("magnetics.inductance.open_h", open_h));
@@ -600,17 +767,30 @@ fn save<P: std::io::Read + Write>(link: &mut Link<P>, out: &mut dyn Write) -> an
 }
 
 /// The actuator file a commissioning gives: the measured actuator
-/// ([`crate::commissioning::measured`]), each measured value and its uncertainty, and the
-/// end stops, in comments at its head.
+/// ([`crate::commissioning::measured`], with the `spring` when measured), each measured
+/// value and its uncertainty, and the end stops, in comments at its head.
 ///
 /// # Errors
 /// The file does not serialise or does not validate (the board measured values no
 /// actuator can have).
-pub fn actuator_file(file: &ema::actuator::Actuator, report: &Report) -> anyhow::Result<String> {
+pub fn actuator_file(
+    file: &ema::actuator::Actuator,
+    report: &Report,
+    spring: Option<&Spring>,
+) -> anyhow::Result<String> {
     let r = report.resistance;
     let l = report.inductance;
     let e = report.ends;
-    let (a, moved) = crate::commissioning::measured(file, report)?;
+    let (a, moved) = crate::commissioning::measured(file, report, spring)?;
+    let spring_head = spring.map_or(String::new(), |s| {
+        format!(
+            "#   mechanics.spring_n_per_m = {} +- {} (two standard errors of the fit),\n\
+             #   mechanics.preload_n = {} (closed-loop holds at four positions)\n",
+            sig(s.n_per_m, 4),
+            sig(s.spread_n_per_m, 2),
+            sig(s.preload_n, 4)
+        )
+    });
     let head = format!(
         "# Commissioned on the board (loop open, armature at rest):\n\
          #   coil.resistance_ohm = {} +- {} (two standard errors, converter noise)\n\
@@ -618,6 +798,7 @@ pub fn actuator_file(file: &ema::actuator::Actuator, report: &Report) -> anyhow:
          #   in the file's linear form each moved by {:.2} % (positive iron reluctance)\n\
          #   position reading at the open stop {} m, at the closed stop {} m +- {} m\n\
          #   (in the calibration of this file's board.position_span_m)\n\
+         {spring_head}\
          # Tune it before use: hil-sim tune <this file>\n",
         r.ohm,
         r.spread_ohm,
@@ -894,31 +1075,27 @@ pub struct CaptureOutcome {
     pub files: Vec<PathBuf>,
 }
 
-/// Captures a move (the board must be armed) and compares it with the prediction.
+/// Captures `samples` readings, one every `decimation` ticks, of a move to `position_m`
+/// (the board armed; `time_s` the move's duration, the board's shaping if `None`) and
+/// reads the capture back.
 ///
 /// # Errors
-/// A refusal, no reply, a capture that does not finish, files that cannot be written.
-pub fn capture<P: std::io::Read + Write>(
+/// A refusal, no reply, a capture that does not finish.
+fn capture_move<P: std::io::Read + Write>(
     link: &mut Link<P>,
-    a: &CaptureArgs,
-    out: &mut dyn Write,
-) -> anyhow::Result<CaptureOutcome> {
-    let s = status(link)?;
-    if !s.mode.armed() {
-        bail!("the board is {}: arm it first", s.mode.name());
-    }
-    let params = read_params(link)?;
-    let rate = f64::from(params.actuator.board.rate_hz);
+    samples: u16,
+    decimation: u16,
+    position_m: f32,
+    time_s: Option<f32>,
+    rate_hz: f64,
+) -> anyhow::Result<Capture> {
     link.done(Command::Capture {
-        samples: a.samples,
-        decimation: a.decimation,
+        samples,
+        decimation,
         trigger: Trigger::Move,
     })?;
-    link.done(Command::Move {
-        position_m: (a.position_mm * 1e-3) as f32,
-        time_s: a.time_s.map(|t| t as f32),
-    })?;
-    let span_s = f64::from(a.samples) * f64::from(a.decimation) / rate;
+    link.done(Command::Move { position_m, time_s })?;
+    let span_s = f64::from(samples) * f64::from(decimation) / rate_hz;
     let deadline = Instant::now() + Duration::from_secs_f64(10.0 * span_s + 5.0);
     let total = loop {
         match status(link)?.capture {
@@ -945,7 +1122,33 @@ pub fn capture<P: std::io::Read + Write>(
         }
         offset = offset.saturating_add(CHUNK_SAMPLES as u16);
     }
-    let capture = Capture::from_chunks(&chunks).ok_or_else(|| anyhow!("empty capture"))?;
+    Capture::from_chunks(&chunks).ok_or_else(|| anyhow!("empty capture"))
+}
+
+/// Captures a move (the board must be armed) and compares it with the prediction.
+///
+/// # Errors
+/// A refusal, no reply, a capture that does not finish, files that cannot be written.
+pub fn capture<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    a: &CaptureArgs,
+    out: &mut dyn Write,
+) -> anyhow::Result<CaptureOutcome> {
+    let s = status(link)?;
+    if !s.mode.armed() {
+        bail!("the board is {}: arm it first", s.mode.name());
+    }
+    let params = read_params(link)?;
+    let rate = f64::from(params.actuator.board.rate_hz);
+    let span_s = f64::from(a.samples) * f64::from(a.decimation) / rate;
+    let capture = capture_move(
+        link,
+        a.samples,
+        a.decimation,
+        (a.position_mm * 1e-3) as f32,
+        a.time_s.map(|t| t as f32),
+        rate,
+    )?;
     let (sc, run) = super::prediction(&params, &capture, a.noise)?;
     let board = super::capture_metrics(&sc, &capture);
     let simulator = super::prediction_metrics(&sc, &run, &capture);
@@ -1055,13 +1258,24 @@ pub fn capture<P: std::io::Read + Write>(
 
 /// What the virtual board's standard input takes.
 const INJECTIONS: &str = "supply V, position-open, position-ok, analog-v V, analog-ma MA, \
-                          cut-save STEP, resistance OHM, surfaces SCALE";
+                          cut-save STEP, resistance OHM, surfaces SCALE, \
+                          spring N_PER_M PRELOAD_N";
 
-/// A line of the virtual board's standard input, as an injection.
-fn injection(line: &str) -> Option<Result<Injection, String>> {
+/// A line of the virtual board's standard input, as an injection on a board whose
+/// actuator's file is `file` (a spring keeps its mass and friction).
+fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
     let mut words = line.split_whitespace();
     let verb = words.next()?;
     let arg = words.next().map(str::parse::<f64>);
+    let second = words.next().map(str::parse::<f64>);
+    if let ("spring", Some(Ok(k)), Some(Ok(f0))) = (verb, &arg, &second) {
+        return Some(Ok(Injection::Mechanics {
+            mass_kg: f64::from(file.mechanics.mass_kg),
+            spring_n_per_m: *k,
+            preload_n: *f0,
+            friction_n_s_per_m: f64::from(file.mechanics.friction_n_s_per_m),
+        }));
+    }
     Some(match (verb, arg) {
         ("supply", Some(Ok(v))) => Ok(Injection::Supply(v)),
         ("position-open", None) => Ok(Injection::PositionOpen(true)),
@@ -1125,7 +1339,7 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let speed = (a.speed > 0.0).then_some(a.speed);
     board.serve(&mut master, speed, &stop, |b| {
         while let Ok(line) = rx.try_recv() {
-            match injection(&line) {
+            match injection(&line, &actuator) {
                 Some(Ok(i)) => {
                     eprintln!("virtual board: {i:?}");
                     b.inject(i);

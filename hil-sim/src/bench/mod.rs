@@ -34,8 +34,9 @@
 //!
 //! On the virtual board's standard input, one injection per line: `supply V` (the
 //! supply's voltage), `position-open`, `position-ok`, `analog-v V`, `analog-ma MA`,
-//! `cut-save STEP` (the power goes at that step of the next save), `resistance OHM` and
-//! `surfaces SCALE` (an actuator off its file, to commission). `virtual --speed 0`
+//! `cut-save STEP` (the power goes at that step of the next save), `resistance OHM`,
+//! `surfaces SCALE` and `spring N_PER_M PRELOAD_N` (an actuator off its file, to
+//! commission). `virtual --speed 0`
 //! runs as fast as it can (the tests do).
 //!
 //! What the tests hold the board to: `tests/bench.rs` (a whole session over a

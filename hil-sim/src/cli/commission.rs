@@ -1,7 +1,8 @@
 //! `hil-sim commission <name> [--n N --seed S --tune]`: the board's commissioning routine
 //! on an actuator's file against N plants drawn wider than it (see
 //! [`crate::commissioning::Draw`]), in parallel: the identification errors' median, 99th
-//! percentile and maximum, the actuator time, the largest coil current, the endings; with
+//! percentile and maximum, the actuator time, the largest coil current, the endings; then
+//! the spring measured from closed-loop holds ([`crate::commissioning::spring`]); with
 //! `--tune`, each commissioned actuator tuned and run in closed loop on its true plant.
 
 use std::collections::BTreeMap;
@@ -52,17 +53,33 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             let mut rng = rand_pcg::Pcg64::seed_from_u64(args.seed.wrapping_add(k as u64));
             let draw = Draw::new(&mut rng);
             let o = commissioning::run(&a, Some(&draw))?;
-            let closed = match o.report {
-                Ok(r) if args.tune => {
-                    let plant = commissioning::true_plant(&a, Some(&draw))?;
-                    Some(commissioning::closed_loop(&a, &r, &plant)?)
-                }
-                _ => None,
+            let plant = commissioning::true_plant(&a, Some(&draw))?;
+            let Ok(r) = o.report else {
+                return Ok((o, None, None));
             };
-            Ok((o, closed))
+            let spring = commissioning::spring(&a, &r, &plant, Some(&draw))?;
+            // Relative rate error; preload error as a share of the spring's force over
+            // the stroke.
+            let spring_errors = spring.map(|s| {
+                [
+                    s.n_per_m / plant.spring_n_per_m - 1.0,
+                    (s.preload_n - plant.preload_n) / (plant.spring_n_per_m * plant.stroke_m),
+                ]
+            });
+            let closed = if args.tune {
+                Some(commissioning::closed_loop(
+                    &a,
+                    &r,
+                    spring.ok().as_ref(),
+                    &plant,
+                )?)
+            } else {
+                None
+            };
+            Ok((o, Some(spring_errors), closed))
         })
         .collect::<Result<Vec<_>, crate::Error>>()?;
-    let outcomes: Vec<_> = runs.iter().map(|(o, _)| *o).collect();
+    let outcomes: Vec<_> = runs.iter().map(|(o, _, _)| *o).collect();
     let rated = f64::from(a.coil.rated_current_a);
     let mut endings: BTreeMap<&str, usize> = BTreeMap::new();
     let mut errors: Vec<[f64; 5]> = Vec::new();
@@ -108,6 +125,35 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             over.to_string(),
         ]);
     }
+    let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut spring: Vec<[f64; 2]> = Vec::new();
+    for s in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
+        match s {
+            Ok(e) => spring.push(*e),
+            Err(f) => *holds_faulted.entry(f).or_default() += 1,
+        }
+    }
+    for (i, (what, target)) in [
+        ("spring rate error [%]", Some(5.0)),
+        ("preload error [% of K x stroke]", None),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let v: Vec<f64> = spring.iter().map(|e| 100.0 * e[i].abs()).collect();
+        let over = target.map_or(String::new(), |t: f64| {
+            v.iter().filter(|x| **x > t).count().to_string()
+        });
+        let [m, p, x] = stats(v);
+        t.push([
+            what.to_owned(),
+            sig(m, 3),
+            sig(p, 3),
+            sig(x, 3),
+            target.map_or(String::new(), |t| sig(t, 2)),
+            over,
+        ]);
+    }
     let took: Vec<f64> = outcomes.iter().map(|o| o.took_s).collect();
     let peak: Vec<f64> = outcomes.iter().map(|o| 100.0 * o.peak_a / rated).collect();
     for (what, v, target) in [
@@ -130,7 +176,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         let mut misses: BTreeMap<&str, usize> = BTreeMap::new();
         let mut tuned = 0;
         let mut passed = 0;
-        for c in runs.iter().filter_map(|(_, c)| c.as_ref()) {
+        for c in runs.iter().filter_map(|(_, _, c)| c.as_ref()) {
             tuned += 1;
             let m = c.misses();
             if m.is_empty() {
@@ -161,6 +207,21 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             "none".to_owned()
         } else {
             endings.join(", ")
+        }
+    )?;
+    let holds_faulted: Vec<String> = holds_faulted
+        .iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect();
+    writeln!(
+        out,
+        "spring measured on {} of the {} commissioned; holds ended by a fault: {}",
+        spring.len(),
+        errors.len(),
+        if holds_faulted.is_empty() {
+            "none".to_owned()
+        } else {
+            holds_faulted.join(", ")
         }
     )?;
     Ok(())

@@ -598,8 +598,10 @@ fn measure_spring<P: std::io::Read + Write>(
                 clippy::cast_sign_loss
             )]
             let from = ((1.0 - crate::commissioning::HOLD_WINDOW_SHARE) * n as f64) as usize;
-            *hold = c.samples[from..]
+            *hold = c
+                .samples
                 .iter()
+                .skip(from)
                 .map(|s| (f64::from(s.x_m), f64::from(s.i_a)))
                 .collect();
         }

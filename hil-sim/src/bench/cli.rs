@@ -522,22 +522,7 @@ fn measure_spring<P: std::io::Read + Write>(
     } else {
         ticks as u16
     };
-    let mut sets: Vec<(&str, Value)> = commissioned_params(file, &m)?
-        .into_iter()
-        .map(|(k, v)| (k, Value::Number(v)))
-        .collect();
-    sets.extend([
-        ("tuning.alpha_per_s", Value::Number(tuning.alpha_per_s)),
-        (
-            "tuning.observer_rad_s",
-            Value::Number(tuning.observer_rad_s),
-        ),
-        ("tuning.margin", Value::Number(tuning.margin)),
-        (
-            "tuning.disturbance_follows_force",
-            Value::Flag(tuning.disturbance_follows_force),
-        ),
-    ]);
+    let sets = commissioned_sets(file, &m, &tuning)?;
     writeln!(
         out,
         "spring: the loop closed with the measured coil and circuit, default tuning; holds of {} s at {}",
@@ -709,15 +694,16 @@ pub fn commissioned_params(
     Ok(out)
 }
 
-/// Sets the commissioned actuator `measured` and its `tuning` on the board and saves
-/// them; on a refusal the stored parameters are loaded back and nothing is saved.
-fn apply_commissioned<P: std::io::Read + Write>(
-    link: &mut Link<P>,
+/// The `set`s that carry a commissioned actuator `measured` ([`commissioned_params`]) and
+/// a `tuning` on a board whose file is `board`.
+///
+/// # Errors
+/// As [`commissioned_params`].
+fn commissioned_sets(
     board: &Actuator,
     measured: &Actuator,
     tuning: &ema::actuator::Tuning,
-    out: &mut dyn Write,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<(&'static str, Value)>> {
     let mut sets: Vec<(&str, Value)> = commissioned_params(board, measured)?
         .into_iter()
         .map(|(k, v)| (k, Value::Number(v)))
@@ -734,7 +720,19 @@ fn apply_commissioned<P: std::io::Read + Write>(
             Value::Flag(tuning.disturbance_follows_force),
         ),
     ]);
-    for (name, value) in sets {
+    Ok(sets)
+}
+
+/// Sets the commissioned actuator `measured` and its `tuning` on the board and saves
+/// them; on a refusal the stored parameters are loaded back and nothing is saved.
+fn apply_commissioned<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    board: &Actuator,
+    measured: &Actuator,
+    tuning: &ema::actuator::Tuning,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    for (name, value) in commissioned_sets(board, measured, tuning)? {
         if let Err(e) = link.done(Command::Set { name, value }) {
             link.done(Command::Load)?;
             bail!("{e}; the stored parameters are loaded back, nothing saved");

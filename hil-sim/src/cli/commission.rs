@@ -103,27 +103,31 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         "target",
         "over it",
     ]);
-    let stats = |mut v: Vec<f64>| -> [f64; 3] {
+    // One row: the median, the 99th percentile and the maximum of `v`, and how many are
+    // over the target (none: a quantity without one).
+    let row = |t: &mut Table, what: &str, mut v: Vec<f64>, target: Option<f64>| {
+        let over = target.map_or(String::new(), |target| {
+            v.iter().filter(|x| **x > target).count().to_string()
+        });
         v.sort_by(f64::total_cmp);
         let at = |q: f64| {
             v.get(((v.len() as f64 - 1.0) * q).round() as usize)
                 .copied()
         };
-        [at(0.5), at(0.99), v.last().copied()].map(|x| x.unwrap_or(f64::NAN))
-    };
-    for (i, (what, target)) in QUANTITIES.iter().enumerate() {
-        let scale = if i < 3 { 100.0 } else { 1.0 };
-        let v: Vec<f64> = errors.iter().map(|e| scale * e[i].abs()).collect();
-        let over = v.iter().filter(|x| **x > *target).count();
-        let [m, p, x] = stats(v);
+        let [m, p, x] = [at(0.5), at(0.99), v.last().copied()].map(|x| x.unwrap_or(f64::NAN));
         t.push([
-            (*what).to_owned(),
+            what.to_owned(),
             sig(m, 3),
             sig(p, 3),
             sig(x, 3),
-            sig(*target, 2),
-            over.to_string(),
+            target.map_or(String::new(), |t| sig(t, 2)),
+            over,
         ]);
+    };
+    for (i, (what, target)) in QUANTITIES.iter().enumerate() {
+        let scale = if i < 3 { 100.0 } else { 1.0 };
+        let v = errors.iter().map(|e| scale * e[i].abs()).collect();
+        row(&mut t, what, v, Some(*target));
     }
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut spring: Vec<[f64; 2]> = Vec::new();
@@ -140,37 +144,18 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     .into_iter()
     .enumerate()
     {
-        let v: Vec<f64> = spring.iter().map(|e| 100.0 * e[i].abs()).collect();
-        let over = target.map_or(String::new(), |t: f64| {
-            v.iter().filter(|x| **x > t).count().to_string()
-        });
-        let [m, p, x] = stats(v);
-        t.push([
-            what.to_owned(),
-            sig(m, 3),
-            sig(p, 3),
-            sig(x, 3),
-            target.map_or(String::new(), |t| sig(t, 2)),
-            over,
-        ]);
+        let v = spring.iter().map(|e| 100.0 * e[i].abs()).collect();
+        row(&mut t, what, v, target);
     }
-    let took: Vec<f64> = outcomes.iter().map(|o| o.took_s).collect();
-    let peak: Vec<f64> = outcomes.iter().map(|o| 100.0 * o.peak_a / rated).collect();
-    for (what, v, target) in [
-        ("actuator time [s]", took, 10.0),
-        ("largest coil current [% of the rating]", peak, 100.0),
-    ] {
-        let over = v.iter().filter(|x| **x > target).count();
-        let [m, p, x] = stats(v);
-        t.push([
-            what.to_owned(),
-            sig(m, 3),
-            sig(p, 3),
-            sig(x, 3),
-            sig(target, 3),
-            over.to_string(),
-        ]);
-    }
+    let took = outcomes.iter().map(|o| o.took_s).collect();
+    let peak = outcomes.iter().map(|o| 100.0 * o.peak_a / rated).collect();
+    row(&mut t, "actuator time [s]", took, Some(10.0));
+    row(
+        &mut t,
+        "largest coil current [% of the rating]",
+        peak,
+        Some(100.0),
+    );
     write!(out, "{}", t.to_text())?;
     if args.tune {
         let mut misses: BTreeMap<&str, usize> = BTreeMap::new();

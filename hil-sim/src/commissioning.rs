@@ -183,8 +183,8 @@ pub fn spring(
     if let Some(f) = run.samples.iter().find_map(|s| s.fault) {
         return Ok(Err(f.name()));
     }
-    #[allow(clippy::cast_precision_loss)]
-    let segment_s = sc.duration_s / crate::actuator::SEQUENCE.len() as f64;
+    let stroke_m = f64::from(m.mechanics.stroke_m);
+    let segment_s = crate::actuator::segment_s(&sc.controller, stroke_m);
     let holds = core::array::from_fn(|k| {
         #[allow(clippy::cast_precision_loss)]
         let end_s = segment_s * (k + 1) as f64;
@@ -195,11 +195,7 @@ pub fn spring(
             .map(|q| (q.x_meas_m, q.i_meas_a))
             .collect::<Vec<_>>()
     });
-    Ok(Ok(fit_spring(
-        report,
-        f64::from(m.mechanics.stroke_m),
-        &holds,
-    )))
+    Ok(Ok(fit_spring(report, stroke_m, &holds)))
 }
 
 /// The spring's rate and preload from the readings `(position [m], current [A])` of each
@@ -343,10 +339,10 @@ impl ClosedLoop {
 }
 
 /// Tunes the actuator `report` (and `spring`, when measured) measured on file `a`
-/// ([`measured`]) at the board's rate, as `bench commission --tune` does, and runs its evaluation sequence on the true
-/// `plant`, the converter with its typical noise but no gain or offset error (the end
-/// stops are not yet applied to the calibration, so a sensor's own error would stay in
-/// the position).
+/// ([`measured`]) at the board's rate, as `bench commission --tune` does, and runs its
+/// evaluation sequence on the true `plant`, the converter with its typical noise but no
+/// gain or offset error (the end stops are not yet applied to the calibration, so a
+/// sensor's own error would stay in the position).
 ///
 /// # Errors
 /// Measured values no actuator can have; settings that do not derive.

@@ -404,6 +404,39 @@ fn tune_writes_a_tuned_file_that_loads() {
     );
 }
 
+/// An actuator the law cannot be tuned for (5 g on a 5000 N/m spring: its coil cannot
+/// slew the force as fast as its mechanics move) is refused: no tuned file, and the
+/// diagnosis names the target missed, the rate and by how much.
+#[test]
+fn tune_refuses_an_actuator_it_cannot_tune_and_names_the_target() {
+    let out = dir("tune-refused");
+    std::fs::create_dir_all(&out).unwrap();
+    let file = out.join("micro-valve-stiff.toml");
+    std::fs::write(&file, include_str!("../actuators/micro-valve-stiff.toml")).unwrap();
+    let args = tune::Args {
+        actuator: file.display().to_string(),
+        rates_hz: Some(vec![20e3]),
+        validate: 4,
+        substeps: 1,
+        tuned: None,
+        quiet: true,
+        output: Output {
+            out: Some(out.clone()),
+        },
+    };
+    let mut printed = Vec::new();
+    let o = tune::run(&args, &mut printed).unwrap();
+    let printed = String::from_utf8(printed).unwrap();
+    assert_eq!(o.tuned, None, "{printed}");
+    assert!(!out.join("micro-valve-stiff.tuned.toml").exists());
+    let d = o.report.diagnosis.unwrap_or_else(|| panic!("{printed}"));
+    assert!(
+        d.contains("misses `") && d.contains("at 20 kHz by a factor"),
+        "{d}"
+    );
+    assert!(printed.contains(&d), "{printed}");
+}
+
 /// `golden` refuses a folder that does not exist, by name.
 #[test]
 fn golden_names_a_missing_folder() {

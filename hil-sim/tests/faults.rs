@@ -79,7 +79,7 @@ use Pin::{Late, Misnamed, Named, Unnamed};
 /// current sensor stuck, offset; coil open, short; supply sag, over-voltage; missed
 /// deadlines; tick stops; plant outside the bounds (timed from power-up). The bounds are
 /// the measured latencies rounded up to the next 50 us.
-const TABLES: [(&str, [Pin; 12]); 6] = [
+const TABLES: [(&str, [Pin; 12]); 7] = [
     (
         "product",
         [
@@ -180,6 +180,23 @@ const TABLES: [(&str, [Pin; 12]); 6] = [
             Named(100.0),
             Named(200.0),
             Named(100.0),
+        ],
+    ),
+    (
+        "micro-valve",
+        [
+            Named(50.0),
+            Named(50.0),
+            Named(400.0),
+            Late("position_stuck", 1000.0, 1700.0),
+            Misnamed("model_bounds", 100.0),
+            Named(100.0),
+            Named(100.0),
+            Named(50.0),
+            Named(50.0),
+            Named(100.0),
+            Named(200.0),
+            Unnamed,
         ],
     ),
 ];

@@ -72,6 +72,11 @@ pub struct Outcome {
     pub trip_a: f64,
     /// The bridge coasted at every sample after the detection.
     pub coasting: bool,
+    /// Time from the injection to the first sample at which the fault could be seen
+    /// \[s\] (`None`: not within the run): 0 for every fault but a frozen reading, which
+    /// is what a healthy sensor could read until the true quantity moves (see
+    /// [`observable_after_s`]).
+    pub observable_after_s: Option<f64>,
 }
 
 impl Outcome {
@@ -304,7 +309,35 @@ pub fn evaluate(case: &Case) -> Result<Outcome, Error> {
         peak_current_a: r.metrics.i_peak_a,
         trip_a: f64::from(case.scenario.controller.limits.current_trip_a),
         coasting,
+        observable_after_s: observable_after_s(case, &r),
     })
+}
+
+/// When the fault of `case` became observable in its run `r`, from the injection \[s\].
+///
+/// A frozen reading (position or current sensor stuck) is, as long as the true quantity
+/// stays where it was at the injection, exactly what a healthy sensor could read: it
+/// becomes observable at the first sample at which the true position or current has
+/// moved from its value at the injection by more than the converter's noise allowance
+/// ([`ema::actuator::NOISE_ALLOWANCE_CODES`] codes of that channel, four standard
+/// deviations of the difference of two readings). No detector can name it before; a
+/// frozen reading whose quantity never moves within the run is not observable in it.
+/// Every other fault changes what the tick reads, or the coil, at its injection: 0.
+#[must_use]
+pub fn observable_after_s(case: &Case, r: &crate::Run) -> Option<f64> {
+    let sense = &case.scenario.controller.sense;
+    let allowance = |scale: f32| f64::from(ema::actuator::NOISE_ALLOWANCE_CODES * scale.abs());
+    let (quantity, allowance): (fn(&crate::Sample) -> f64, f64) =
+        match case.scenario.faults.first().map(|f| f.fault) {
+            Some(Injected::PositionStuck) => (|s| s.x_m, allowance(sense.position.scale)),
+            Some(Injected::CurrentStuck) => (|s| s.i_a, allowance(sense.current.scale)),
+            _ => return Some(0.0),
+        };
+    let mut after = r.samples.iter().filter(|s| s.t_s >= case.at_s - 1e-9);
+    let at = quantity(after.next()?);
+    after
+        .find(|s| (quantity(s) - at).abs() > allowance)
+        .map(|s| s.t_s - case.at_s)
 }
 
 /// Every case on `base`, in parallel.
@@ -340,6 +373,11 @@ pub struct Spread {
     pub before: usize,
     /// Injections after which the bridge did not coast at every sample.
     pub not_coasting: usize,
+    /// Injections that became observable within their run ([`observable_after_s`]).
+    pub observable: usize,
+    /// Of those, the ones named as expected within [`DEADLINE_S`] of becoming observable
+    /// (and after the injection).
+    pub named_once_observable: usize,
     /// Largest coil current over all the runs \[A\].
     pub peak_current_a: f64,
     /// Trip level \[A\].
@@ -430,6 +468,8 @@ fn spread(c: &Case, outcomes: &[Outcome]) -> Spread {
         unnamed: 0,
         before: 0,
         not_coasting: 0,
+        observable: 0,
+        named_once_observable: 0,
         peak_current_a: 0.0,
         trip_a: f64::from(c.scenario.controller.limits.current_trip_a),
     };
@@ -441,6 +481,14 @@ fn spread(c: &Case, outcomes: &[Outcome]) -> Spread {
             s.peak_current_a.max(o.peak_current_a)
         };
         s.not_coasting += usize::from(!o.coasting);
+        if let Some(seen) = o.observable_after_s {
+            s.observable += 1;
+            s.named_once_observable += usize::from(
+                o.fault.as_deref() == Some(expected)
+                    && o.detected_after_s
+                        .is_some_and(|t| t >= 0.0 && t <= seen + DEADLINE_S),
+            );
+        }
         match (&o.fault, o.detected_after_s) {
             (Some(_), Some(t)) if t < 0.0 => s.before += 1,
             (Some(f), Some(t)) if f == expected => {

@@ -75,7 +75,7 @@ pub fn table(cases: &[Case]) -> Table {
 }
 
 /// Column names of the random-injection table.
-pub const RANDOM_HEADER: [&str; 11] = [
+pub const RANDOM_HEADER: [&str; 13] = [
     "fault injected",
     "expected",
     "n",
@@ -84,6 +84,8 @@ pub const RANDOM_HEADER: [&str; 11] = [
     "detection median / p99 / max [us]",
     "misnamed",
     "not named",
+    "observable in the run",
+    "named within deadline once observable",
     "latched before",
     "not coasting",
     "peak current [A] (trip)",
@@ -91,7 +93,7 @@ pub const RANDOM_HEADER: [&str; 11] = [
 
 /// One case's row of the random-injection table.
 #[must_use]
-pub fn random_row(s: &Spread) -> [String; 11] {
+pub fn random_row(s: &Spread) -> [String; 13] {
     let us = |v: Option<f64>| v.map_or_else(|| "-".into(), |s| sig(s * 1e6, 3));
     #[allow(clippy::cast_precision_loss)]
     let share = 100.0 * s.within_deadline as f64 / s.n.max(1) as f64;
@@ -117,6 +119,8 @@ pub fn random_row(s: &Spread) -> [String; 11] {
                 .join(", ")
         },
         s.unnamed.to_string(),
+        s.observable.to_string(),
+        s.named_once_observable.to_string(),
         s.before.to_string(),
         s.not_coasting.to_string(),
         format!("{} ({})", sig(s.peak_current_a, 4), sig(s.trip_a, 4)),

@@ -425,8 +425,13 @@ fn random_faults(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Re
          its own plant drawn from the controller's uncertainty set with its own converter \
          noise (seed {seed}; the same plants and instants for every case). A run passes as \
          in the table above, and only if the fault is latched after the injection; \
-         \"latched before\" counts false alarms on the drawn plant before the injection. The \
-         fault-free control is the Monte Carlo above: its column \"draws with a fault\" at \
+         \"latched before\" counts false alarms on the drawn plant before the injection. A \
+         frozen reading is what a healthy sensor could read until the true position or \
+         current moves by more than the converter's noise allowance \
+         (`hil_sim::faults::observable_after_s`); \"observable in the run\" counts the \
+         injections after which it did within the run (every injection of the other \
+         cases), and the last column those named as expected within the deadline of that \
+         instant. The fault-free control is the Monte Carlo above: its column \"draws with a fault\" at \
          every rate. The plant-outside-the-bounds case is there from power-up and is not \
          drawn.\n",
         n = args.n_random,

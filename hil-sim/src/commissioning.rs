@@ -31,7 +31,9 @@ use crate::Error;
 /// resistance, the spring rate, the mass each within +-30 %, an unknown preload up to a
 /// fifth of the spring's force over the stroke, the friction within +-50 %, and a
 /// position sensor whose offset and gain are each within +-3 % (of the stroke, of the
-/// span).
+/// span), and the converter's noise its own realisation: the inductances come from a few
+/// noisy current samples of a decay, so one noise sequence shared by every draw would
+/// give every draw the same error and hide its spread.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Draw {
     /// Surfaces, resistance, spring rate, mass, friction: factors on the file's \[-\].
@@ -42,6 +44,8 @@ pub struct Draw {
     pub gain_error: f64,
     /// Its offset as a share of the stroke \[-\].
     pub offset_share: f64,
+    /// Seed of the converter's noise.
+    pub noise_seed: u64,
 }
 
 impl Draw {
@@ -54,6 +58,7 @@ impl Draw {
             preload_share: rng.random_range(0.0..0.2),
             gain_error: rng.random_range(-0.03..0.03),
             offset_share: rng.random_range(-0.03..0.03),
+            noise_seed: rng.random(),
         }
     }
 
@@ -178,6 +183,7 @@ pub fn spring(
     if let (Sensors::Adc(adc), Some(d)) = (&mut sc.sensors, draw) {
         (adc.position.gain_error, adc.position.offset_code) =
             d.position_error(plant.stroke_m, code_m);
+        adc.seed = d.noise_seed;
     }
     let run = crate::sim::run(&sc)?;
     if let Some(f) = run.samples.iter().find_map(|s| s.fault) {
@@ -381,7 +387,10 @@ pub fn closed_loop(
 /// # Errors
 /// An actuator whose settings do not derive.
 pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
-    let sc = scenario(a, true)?;
+    let mut sc = scenario(a, true)?;
+    if let (Sensors::Adc(adc), Some(d)) = (&mut sc.sensors, draw) {
+        adc.seed = d.noise_seed;
+    }
     let plant = plant_of(&sc, draw);
     let mut stepper = Stepper::for_scenario(&sc, plant.clone(), sc.integration.substeps)?;
     let mut converter = match &sc.sensors {

@@ -21,7 +21,9 @@
 //! sample instant at least its early-wakeup time (292.6 us at 20 kHz) after the last feed.
 //!
 //! [`random`] injects each case again at random instants over the sequence, on plants
-//! drawn from the controller's uncertainty set, and [`Spread`] gathers how they were found.
+//! drawn from the controller's uncertainty set, and [`Spread`] gathers how they were found
+//! and when each fault became observable ([`observable_after_s`]): a reading frozen while
+//! nothing moves is what a healthy sensor reads, and no detector can name it then.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};

@@ -88,6 +88,7 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
         preload_share: file_share,
         gain_error: f64::from(t),
         offset_share: f64::from(t),
+        noise_seed: hil_sim::hal::Adc::typical().seed,
     };
     let o = hil_sim::commissioning::run(&a, Some(&corner)).unwrap();
     let Some([_, _, _, open, closed]) = o.errors() else {
@@ -102,7 +103,9 @@ const SPRING_SEED: u64 = 0x5b71_0000_0000_0013;
 /// The spring's rate within 5 % and its preload within 2 % of the spring's force over the
 /// stroke, measured from the closed-loop holds ([`hil_sim::commissioning::spring`]) on
 /// drawn products and valves (sensor offset and gain errors included, corrected by the
-/// measured end stops).
+/// measured end stops). Holds that a monitor ends (the default tuning on a plant far from
+/// the file: 2.5 % of drawn valves in `hil-sim commission valve --n 1000`) measure
+/// nothing and say why; at most one of each member's six.
 #[test]
 fn the_spring_and_its_preload_are_measured_from_closed_loop_holds() {
     use rand::SeedableRng;
@@ -110,14 +113,22 @@ fn the_spring_and_its_preload_are_measured_from_closed_loop_holds() {
     eprintln!("seed {SPRING_SEED:#x}");
     for name in ["product", "valve"] {
         let (_, a) = hil_sim::actuator::load(name).unwrap();
+        let mut ended = 0;
         for _ in 0..6 {
             let draw = hil_sim::commissioning::Draw::new(&mut rng);
             let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
             let report = o.report.unwrap();
             let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
-            let s = hil_sim::commissioning::spring(&a, &report, &plant, Some(&draw))
-                .unwrap()
-                .unwrap();
+            let s = match hil_sim::commissioning::spring(&a, &report, &plant, Some(&draw)) {
+                Ok(Ok(s)) => s,
+                Ok(Err(fault)) => {
+                    eprintln!("{name}: holds ended by {fault}; {draw:?}");
+                    ended += 1;
+                    assert!(ended <= 1, "{name}: {ended} of 6 holds ended by a fault");
+                    continue;
+                }
+                Err(e) => panic!("{name}: {e}"),
+            };
             let k = s.n_per_m / plant.spring_n_per_m - 1.0;
             let f0 = (s.preload_n - plant.preload_n) / (plant.spring_n_per_m * plant.stroke_m);
             eprintln!(

@@ -367,14 +367,9 @@ fn faults_prints_and_writes_the_table() {
     assert_eq!(csv_rows(&out.join("faults.csv")), 12);
 }
 
-/// Tuning a file at one rate writes its tuned file beside it, with the chosen gains in a
-/// `[tuning]` section, and the file loads back as the tuned actuator.
-#[test]
-fn tune_writes_a_tuned_file_that_loads() {
-    let out = dir("tune");
-    std::fs::create_dir_all(&out).unwrap();
-    let file = out.join("valve.toml");
-    std::fs::write(&file, hil_sim::actuator::member("valve").unwrap().text).unwrap();
+/// `tune` on the actuator `file` at 20 kHz only, 4 validation draws, files into `out`:
+/// its outcome and what it printed.
+fn tune_at_20_khz(file: &std::path::Path, out: &std::path::Path) -> (tune::Outcome, String) {
     let args = tune::Args {
         actuator: file.display().to_string(),
         rates_hz: Some(vec![20e3]),
@@ -383,12 +378,23 @@ fn tune_writes_a_tuned_file_that_loads() {
         tuned: None,
         quiet: true,
         output: Output {
-            out: Some(out.clone()),
+            out: Some(out.to_path_buf()),
         },
     };
     let mut printed = Vec::new();
     let o = tune::run(&args, &mut printed).unwrap();
-    let printed = String::from_utf8(printed).unwrap();
+    (o, String::from_utf8(printed).unwrap())
+}
+
+/// Tuning a file at one rate writes its tuned file beside it, with the chosen gains in a
+/// `[tuning]` section, and the file loads back as the tuned actuator.
+#[test]
+fn tune_writes_a_tuned_file_that_loads() {
+    let out = dir("tune");
+    std::fs::create_dir_all(&out).unwrap();
+    let file = out.join("valve.toml");
+    std::fs::write(&file, hil_sim::actuator::member("valve").unwrap().text).unwrap();
+    let (o, printed) = tune_at_20_khz(&file, &out);
     let path = o.tuned.unwrap_or_else(|| panic!("{printed}"));
     assert_eq!(path, out.join("valve.tuned.toml"));
     assert!(
@@ -413,20 +419,7 @@ fn tune_refuses_an_actuator_it_cannot_tune_and_names_the_target() {
     std::fs::create_dir_all(&out).unwrap();
     let file = out.join("micro-valve-stiff.toml");
     std::fs::write(&file, include_str!("../actuators/micro-valve-stiff.toml")).unwrap();
-    let args = tune::Args {
-        actuator: file.display().to_string(),
-        rates_hz: Some(vec![20e3]),
-        validate: 4,
-        substeps: 1,
-        tuned: None,
-        quiet: true,
-        output: Output {
-            out: Some(out.clone()),
-        },
-    };
-    let mut printed = Vec::new();
-    let o = tune::run(&args, &mut printed).unwrap();
-    let printed = String::from_utf8(printed).unwrap();
+    let (o, printed) = tune_at_20_khz(&file, &out);
     assert_eq!(o.tuned, None, "{printed}");
     assert!(!out.join("micro-valve-stiff.tuned.toml").exists());
     let d = o.report.diagnosis.unwrap_or_else(|| panic!("{printed}"));

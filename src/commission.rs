@@ -71,13 +71,14 @@
 //! measured in a hold's window (the closed stop's after the step: the fit's sums are
 //! linear in `i_end`, so it enters once known); sampled at the same point of every PWM
 //! period whatever the ripple, the current then decays geometrically, `y(k+1) = a y(k)`
-//! with `y = i - i_end` and `a = exp(-Ts R / L)`. `a` is the ratio of two weighted sums of the
-//! readings the converter's delay lets answer the step, `sum w y(k+1) / sum w y(k)`, the
-//! weights falling as the file's coil would ([`Plan::guess_factor`], down to
+//! with `y = i - i_end` and `a = exp(-Ts R / L)`. `a` follows from the ratio of two sums of
+//! the readings the converter's delay lets answer the step, weighted by `g^k` and by
+//! `g^2k`, `g` falling as the file's coil would ([`Plan::guess_factor`], down to
 //! [`FIT_WEIGHT_FLOOR`]): both sums are linear in the readings, so the converter's noise
-//! does not bias their ratio (a least squares on `y(k)` itself, whose regressor carries
-//! that noise, read a soft-sprung plunger's small probe 6 % high). `L = -Ts R / ln a`
-//! with the resistance from the closed stop. The probe's pull moves the armature a little
+//! does not bias them (a least squares on `y(k)` itself, whose regressor carries that
+//! noise, read a soft-sprung plunger's small probe 6 % high), and both spread over the
+//! whole decay, so no single reading's noise sets the result. `L = -Ts R / ln a` with the
+//! resistance from the closed stop. The probe's pull moves the armature a little
 //! off the open stop (the end stops calibrate how far, from its position averaged over
 //! the probe's cycle); `1/L` being linear in the gap, the line through the probe's and
 //! the closed stop's values gives the open stop's. The two inductances are the magnetic
@@ -464,30 +465,38 @@ pub struct Report {
 
 /// A current's response to a voltage step towards a level `i_end` (measured before the
 /// step, or by the hold after it: the sums are linear in it), the armature still:
-/// `y(k) = i(k) - i_end` obeys `y(k+1) = a y(k)`. `a` is estimated with an instrument,
-/// `a = sum w(k) y(k+1) / sum w(k) y(k)`, the weight `w(k) = +-g^k` (the sign of the
-/// step's deviation, `+` for a step down) falling as the file's coil would (`g`, its
-/// factor per period) from the first reading the converter's delay lets answer the
-/// step. Numerator and denominator are linear in the
-/// readings, so their noise (zero mean) does not bias the ratio as it biases a least
-/// squares on `y(k)` itself (whose regressor's noise variance the small probe's readings
-/// are comparable with); the weight's guess only costs efficiency, not accuracy.
+/// `y(k) = i(k) - i_end` obeys `y(k) = A a^k` from the first reading the converter's
+/// delay lets answer the step. Two weighted sums of the readings,
+/// `S1 = sum w(k) y(k)` and `S2 = sum w(k) |w(k)| y(k)`, the weight `w(k) = +-g^k` (the
+/// sign of the step's deviation, `+` for a step down) falling as the file's coil would
+/// (`g`, its factor per period), are `A / (1 - g a)` and `A / (1 - g^2 a)`: their ratio
+/// `r = S1 / S2` does not depend on the step's size, and `a = (r - 1) / (g (r - g))`.
+/// Several steps add to both sums alike.
+///
+/// Both sums are linear in the readings, so their noise (zero mean) does not bias them,
+/// as it biases a least squares on `y(k)` itself (whose regressor's noise variance a small
+/// probe's readings are comparable with); and each spreads its weight over the whole
+/// decay, so no single reading sets the estimate. (The instrument
+/// `sum w(k) y(k+1) / sum w(k) y(k)` is unbiased too, but its two sums differ by the
+/// first reading alone: one reading's noise on a 50-code step read a soft-sprung
+/// plunger's inductance up to 20 % off, ten times what the two sums give.) The weight's
+/// guess only costs efficiency, not accuracy.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Decay {
     /// The level the current settles at \[A\] (`NaN`: no fit in this phase).
     end_a: f32,
     /// Readings since the step (`u32::MAX`: the step has not come yet).
     since: u32,
-    /// The last deviation \[A\].
-    last: f32,
-    /// The weight of the next pair (0: this step's fit has ended).
+    /// The weight of the next reading (0: this step's fit has ended).
     weight: f32,
     /// The file's coil's factor per period, the weight's decay.
     guess: f32,
-    sxy: f32,
-    sxx: f32,
-    /// Sum of the weights: the deviations' sums for an end other than `end_a`.
-    sw: f32,
+    /// `S1` and `S2` of the deviations from `end_a`.
+    s1: f32,
+    s2: f32,
+    /// Sums of the weights and of `w |w|`: the sums for an end other than `end_a`.
+    sw1: f32,
+    sw2: f32,
 }
 
 impl Decay {
@@ -497,12 +506,12 @@ impl Decay {
         Self {
             end_a,
             since: u32::MAX,
-            last: 0.0,
             weight: sign,
             guess,
-            sxy: 0.0,
-            sxx: 0.0,
-            sw: 0.0,
+            s1: 0.0,
+            s2: 0.0,
+            sw1: 0.0,
+            sw2: 0.0,
         }
     }
 
@@ -532,24 +541,26 @@ impl Decay {
         if self.since < skip {
             return;
         }
+        let w = self.weight;
+        let w2 = w * w.abs();
         let y = i_a - self.end_a;
-        if self.since > skip {
-            self.sxy += self.weight * y;
-            self.sxx += self.weight * self.last;
-            self.sw += self.weight;
-            self.weight *= self.guess;
-            if self.weight.abs() < FIT_WEIGHT_FLOOR {
-                // The file's coil would have settled: the rest is noise.
-                self.weight = 0.0;
-            }
+        self.s1 += w * y;
+        self.s2 += w2 * y;
+        self.sw1 += w;
+        self.sw2 += w2;
+        self.weight *= self.guess;
+        if self.weight.abs() < FIT_WEIGHT_FLOOR {
+            // The file's coil would have settled: the rest is noise.
+            self.weight = 0.0;
         }
-        self.last = y;
     }
 
     /// The factor per period `a`, the current's end `shift_a` from `end_a` (the sums are
     /// linear in it); `None` unless `0 < a < 1`.
     fn factor(&self, shift_a: f32) -> Option<f32> {
-        let a = (self.sxy - shift_a * self.sw) / (self.sxx - shift_a * self.sw);
+        let r = (self.s1 - shift_a * self.sw1) / (self.s2 - shift_a * self.sw2);
+        let g = self.guess;
+        let a = (r - 1.0) / (g * (r - g));
         (a > 0.0 && a < 1.0).then_some(a)
     }
 }

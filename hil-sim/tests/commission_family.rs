@@ -136,8 +136,8 @@ const SPRING_SEED: u64 = 0x5b71_0000_0000_0013;
 /// stroke, measured from the closed-loop holds ([`hil_sim::commissioning::spring`]) on
 /// drawn products and valves (sensor offset and gain errors included, corrected by the
 /// measured end stops). Holds that a monitor ends (the default tuning on a plant far from
-/// the file: 1.8 % of drawn valves in `hil-sim commission valve --n 1000`) measure
-/// nothing and say why; at most one of each member's six.
+/// the file: a few per cent of drawn valves, counted by `hil-sim commission valve --n
+/// 1000`) measure nothing and say why; at most one of each member's six.
 #[test]
 fn the_spring_and_its_preload_are_measured_from_closed_loop_holds() {
     use rand::SeedableRng;

@@ -374,6 +374,9 @@ pub struct Controller<C> {
     capture_target: u16,
     capture_decimation: u16,
     capture_count: u16,
+    /// Sums of the position and the current's square over the capture sample's ticks so
+    /// far.
+    capture_sum: [f32; 2],
     capture_trigger: Trigger,
     meta: Meta,
     cycles: Cycles,
@@ -415,6 +418,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             capture_target: 0,
             capture_decimation: 1,
             capture_count: 0,
+            capture_sum: [0.0; 2],
             capture_trigger: Trigger::Now,
             meta: Meta::default(),
             cycles: Cycles::default(),
@@ -631,8 +635,27 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         }
     }
 
-    fn record(&mut self, n: u16, sample: Sample) {
-        if self.capture_count == 0 {
+    /// Adds the tick's `sample` to the capture's sample `n`, which spans `decimation` ticks
+    /// (a boxcar before the decimation, so that a current alternating from tick to tick, as
+    /// a sliding-mode current does, is not read at whichever tick the decimation falls
+    /// on): the position is its mean over those ticks, the current its root mean square
+    /// (the magnet's pull goes with its square) signed as at the last tick, the rest as at
+    /// the last tick.
+    fn record(&mut self, n: u16, mut sample: Sample) {
+        let first = self.capture_count == 0;
+        for (sum, v) in self
+            .capture_sum
+            .iter_mut()
+            .zip([sample.x_m, sample.i_a * sample.i_a])
+        {
+            *sum = if first { v } else { *sum + v };
+        }
+        self.capture_count = self.capture_count.saturating_add(1);
+        if self.capture_count >= self.capture_decimation {
+            let ticks = f32::from(self.capture_count);
+            let [x_m, i2_a2] = self.capture_sum.map(|sum| sum / ticks);
+            sample.x_m = x_m;
+            sample.i_a = math::sqrt(i2_a2).copysign(sample.i_a);
             if let Some(slot) = self.capture.as_mut().get_mut(usize::from(n)) {
                 *slot = sample;
             }
@@ -642,9 +665,6 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             } else {
                 CaptureState::Running(n)
             };
-        }
-        self.capture_count = self.capture_count.saturating_add(1);
-        if self.capture_count >= self.capture_decimation {
             self.capture_count = 0;
         }
     }

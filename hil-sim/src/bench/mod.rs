@@ -210,10 +210,12 @@ impl Capture {
         })
     }
 
-    /// Time of sample `k` from the move \[s\].
+    /// Time of sample `k` from the move \[s\]: the middle of its ticks, over which its
+    /// position and current are averaged.
     #[must_use]
     pub fn t_s(&self, k: usize, rate_hz: f64) -> f64 {
-        k as f64 * f64::from(self.decimation) / rate_hz
+        let d = f64::from(self.decimation.max(1));
+        (k as f64 * d + 0.5 * (d - 1.0)) / rate_hz
     }
 }
 
@@ -297,23 +299,41 @@ pub fn capture_trace(capture: &Capture, at_s: f64, rate_hz: f64) -> Vec<sim::Sam
         .collect()
 }
 
-/// The prediction decimated as the capture is, as the board would have measured it.
+/// The prediction decimated as the capture is, as the board would have measured it: each
+/// sample's position the mean over its ticks, its current their root mean square signed
+/// as at the last (summed, divided and rooted in `f32` as the board does), the rest as at
+/// its last tick.
 #[must_use]
 pub fn prediction_samples(run: &Run, capture: &Capture, at_s: f64, rate_hz: f64) -> Vec<Sample> {
     let start = (at_s * rate_hz).round() as usize;
+    let d = usize::from(capture.decimation.max(1));
     (0..capture.samples.len())
-        .filter_map(|k| run.samples.get(start + k * usize::from(capture.decimation)))
-        .map(|p| Sample {
-            r_m: p.r_shaped_m as f32,
-            x_m: p.x_meas_m as f32,
-            v_mps: p.v_est_mps as f32,
-            i_a: p.i_meas_a as f32,
-            u_v: p.u_drive_v as f32,
-            duty: 0.0,
-            vbus_v: p.vbus_v as f32,
-            analog_m: 0.0,
-            fault: p.fault.map_or(0, Fault::code),
-            mode: 0,
+        .filter_map(|k| {
+            let ticks = run.samples.get(start + k * d..start + (k + 1) * d)?;
+            let last = ticks.last()?;
+            let mean = |f: &dyn Fn(&sim::Sample) -> f32| {
+                let sum = ticks.iter().fold(None, |sum: Option<f32>, p| {
+                    Some(sum.map_or(f(p), |s| s + f(p)))
+                });
+                sum.unwrap_or(0.0) / f32::from(capture.decimation.max(1))
+            };
+            let i_last = last.i_meas_a as f32;
+            Some(Sample {
+                r_m: last.r_shaped_m as f32,
+                x_m: mean(&|p| p.x_meas_m as f32),
+                v_mps: last.v_est_mps as f32,
+                i_a: ema::math::sqrt(mean(&|p| {
+                    let i = p.i_meas_a as f32;
+                    i * i
+                }))
+                .copysign(i_last),
+                u_v: last.u_drive_v as f32,
+                duty: 0.0,
+                vbus_v: last.vbus_v as f32,
+                analog_m: 0.0,
+                fault: last.fault.map_or(0, Fault::code),
+                mode: 0,
+            })
         })
         .collect()
 }

@@ -6,10 +6,11 @@
 //! therefore the coil's resistance, with the loop open; the second, the position sensor's
 //! readings at the two end stops. The spring's rate and preload, which no open-loop pull
 //! isolates (the magnet's stiffness exceeds the spring's near the closed stop, so the
-//! armature jumps to a stop), are measured afterwards with the loop closed: the host tool
-//! holds the armature at four positions over the link and reads the magnet's pull at each
-//! from the captured current and the inductances measured here (`hil-sim bench commission
-//! --spring`).
+//! armature jumps to a stop), are measured afterwards with the loop closed, as are the mass
+//! and the friction: the host tool moves the armature to four positions over the link and
+//! holds it there, and reads the magnet's pull from the captured current and the
+//! inductances measured here, the spring's at the holds and the inertia's and the
+//! friction's over the moves (`hil-sim bench commission --mechanics`).
 //!
 //! # The coil's resistance
 //!

@@ -8,11 +8,12 @@
 //! stops (the plant's fringing included), the position readings at both stops (the drawn
 //! sensor's gain and offset included), the largest true coil current, the actuator time.
 //!
-//! The spring is measured after the routine, the loop closed ([`spring`]): the host tool
-//! holds the armature at four positions through the board's link (`bench commission
-//! --spring`) and reads the magnet's pull at each from the captured current and the
-//! measured inductances ([`fit_spring`], the same fit on the bench and here). Not yet
-//! measured: the mass and the friction.
+//! The spring, the mass and the friction are measured after the routine, the loop closed
+//! ([`mechanics`]): the host tool holds the armature at four positions through the
+//! board's link (`bench commission --mechanics`) and captures each move and each hold.
+//! The magnet's pull, read from the captured current and the measured inductances, gives
+//! the spring from the holds ([`fit_spring`]) and, with it, the mass and the friction
+//! from the moves ([`fit_armature`]): the same fits on the bench and here.
 
 use ema::actuator::Actuator;
 use ema::bridge::HBridge;
@@ -90,8 +91,9 @@ pub const IRON_SHARE: f32 = 0.01;
 
 /// The actuator a commissioning measured: `file` (the board's) with the measured
 /// resistance and the two inductances (the magnetic circuit in its two-inductance form),
-/// the `spring` when measured ([`spring`]), the tuning dropped (it was for another
-/// actuator); and the factor both inductances were moved by.
+/// the spring, the mass and the friction when measured ([`mechanics`]; a friction fitted
+/// below zero, a light one read through the noise, is taken as none), the tuning dropped
+/// (it was for another actuator); and the factor both inductances were moved by.
 ///
 /// The file's form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the iron's
 /// `rho_0` positive. A real circuit's fringing bends the line (the surface grows with the
@@ -104,16 +106,18 @@ pub const IRON_SHARE: f32 = 0.01;
 pub fn measured(
     file: &Actuator,
     report: &Report,
-    spring: Option<&Spring>,
+    mechanics: Option<&Mechanics>,
 ) -> Result<(Actuator, f32), Error> {
     let l = report.inductance;
     let mut a = *file;
     a.coil.resistance_ohm = report.resistance.ohm;
-    if let Some(s) = spring {
-        #[allow(clippy::cast_possible_truncation)]
-        {
-            a.mechanics.spring_n_per_m = s.n_per_m as f32;
-            a.mechanics.preload_n = s.preload_n as f32;
+    #[allow(clippy::cast_possible_truncation)]
+    if let Some(m) = mechanics {
+        a.mechanics.spring_n_per_m = m.spring.n_per_m as f32;
+        a.mechanics.preload_n = m.spring.preload_n as f32;
+        if let Some(arm) = m.armature {
+            a.mechanics.mass_kg = arm.mass_kg as f32;
+            a.mechanics.friction_n_s_per_m = arm.friction_n_s_per_m.max(0.0) as f32;
         }
     }
     let (g_open, g_closed) = (
@@ -137,11 +141,16 @@ pub fn measured(
     Ok((a, moved))
 }
 
-/// Share of each hold of [`spring`] averaged: its end, once the move and its settling are
-/// over (the hold lasts the move's settling target plus twice the steady window).
+/// Share of each hold of [`mechanics`] averaged: its end, once the move and its settling
+/// are over (the hold lasts the move's settling target plus twice the steady window).
 pub const HOLD_WINDOW_SHARE: f64 = 0.4;
 
-/// The spring measured by [`spring`].
+/// The board's capture of a move spans this many of the largest move's minimum-time
+/// moves (at most the hold before its window): time for the move and its settling, which
+/// [`fit_armature`] fits.
+pub const MOVE_CAPTURE_MOVES: f64 = 4.0;
+
+/// The spring measured by [`mechanics`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Spring {
     /// Rate \[N/m\].
@@ -155,12 +164,73 @@ pub struct Spring {
     pub holds: [(f64, f64); crate::actuator::SEQUENCE.len()],
 }
 
-/// The spring's rate and preload, from the holding force at the four positions of the
-/// actuator's evaluation sequence ([`crate::actuator::SEQUENCE`], 1/8 to 7/8 of the
-/// stroke), the loop closed with the settings the measured actuator derives ([`measured`],
-/// the file's spring, the default tuning) on the `plant`, its position sensor `draw`n;
-/// each hold lasts as in the evaluation sequence, its settling target and twice the steady
-/// window. The fit is [`fit_spring`]'s.
+/// What the closed-loop holds measure: the spring, and the mass and the friction when
+/// some move could be fitted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mechanics {
+    /// The spring's rate and preload ([`fit_spring`]).
+    pub spring: Spring,
+    /// The mass and the friction ([`fit_armature`]).
+    pub armature: Option<Armature>,
+}
+
+/// The readings of the holds as the board captures them, one `(position [m], current
+/// [A])` per capture sample: the position's mean over its ticks, the current's root mean
+/// square (`ema::device`'s capture).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Holds {
+    /// Each hold's move from its start, one sample every `move_dt_s`.
+    pub moves: [Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()],
+    /// Time between the moves' samples \[s\].
+    pub move_dt_s: f64,
+    /// Each hold's window at rest: its last [`HOLD_WINDOW_SHARE`].
+    pub windows: [Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()],
+}
+
+/// The capture decimations of the holds with `settings` over `stroke_m` at `rate_hz`:
+/// `(move, window)`. A move's capture spans [`MOVE_CAPTURE_MOVES`] of the largest move's
+/// minimum-time move, at most the hold before its window; a window's, the whole hold (the
+/// window is its last [`HOLD_WINDOW_SHARE`]); each in the board's
+/// [`ema::device::CAPTURE_CAPACITY`] samples.
+#[must_use]
+#[allow(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_precision_loss
+)]
+pub fn decimations(settings: &ema::control::Settings, stroke_m: f64, rate_hz: f64) -> (u16, u16) {
+    use crate::actuator::SEQUENCE;
+    let hold_s = crate::actuator::segment_s(settings, stroke_m);
+    let largest = (1..SEQUENCE.len())
+        .filter_map(|k| {
+            crate::actuator::minimum_move_s(
+                settings,
+                SEQUENCE[k - 1] * stroke_m,
+                SEQUENCE[k] * stroke_m,
+            )
+        })
+        .fold(0.0, f64::max);
+    let move_s = if largest > 0.0 {
+        (MOVE_CAPTURE_MOVES * largest).min((1.0 - HOLD_WINDOW_SHARE) * hold_s)
+    } else {
+        (1.0 - HOLD_WINDOW_SHARE) * hold_s
+    };
+    let ticks = |span_s: f64| {
+        (span_s * rate_hz / ema::device::CAPTURE_CAPACITY as f64)
+            .ceil()
+            .clamp(1.0, f64::from(u16::MAX)) as u16
+    };
+    (ticks(move_s), ticks(hold_s))
+}
+
+/// The spring's rate and preload, and the mass and the friction, from four closed-loop
+/// holds at the positions of the actuator's evaluation sequence
+/// ([`crate::actuator::SEQUENCE`], 1/8 to 7/8 of the stroke), the loop closed with the
+/// settings the measured actuator derives ([`measured`], the file's spring and mass, the
+/// default tuning) on the `plant`, its position sensor `draw`n; each hold lasts as in the
+/// evaluation sequence, its settling target and twice the steady window. The board's
+/// captures ([`Holds`], [`decimations`]) are what is fitted: [`fit_spring`] on the
+/// windows, [`fit_armature`] on the moves.
 ///
 /// The loop holds with the default tuning, for the file's mass and spring: on a plant far
 /// from them it may limit-cycle about a hold (a drawn 1 kg plunger), and the holds then
@@ -170,12 +240,17 @@ pub struct Spring {
 ///
 /// # Errors
 /// Measured values no actuator can have; settings that do not derive.
-pub fn spring(
+#[allow(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_precision_loss
+)]
+pub fn mechanics(
     a: &Actuator,
     report: &Report,
     plant: &Params,
     draw: Option<&Draw>,
-) -> Result<Result<Spring, &'static str>, Error> {
+) -> Result<Result<Mechanics, &'static str>, Error> {
     let (m, _) = measured(a, report, None)?;
     let mut sc = crate::actuator::scenario("holds", &m)?;
     sc.plant = TruePlant::Given(plant.clone());
@@ -190,18 +265,46 @@ pub fn spring(
         return Ok(Err(f.name()));
     }
     let stroke_m = f64::from(m.mechanics.stroke_m);
-    let segment_s = crate::actuator::segment_s(&sc.controller, stroke_m);
-    let holds = core::array::from_fn(|k| {
-        #[allow(clippy::cast_precision_loss)]
-        let end_s = segment_s * (k + 1) as f64;
-        let from_s = end_s - HOLD_WINDOW_SHARE * segment_s;
+    let rate = sc.rate_hz();
+    let hold_ticks = (crate::actuator::segment_s(&sc.controller, stroke_m) * rate).round() as usize;
+    let window_ticks = (HOLD_WINDOW_SHARE * hold_ticks as f64).round() as usize;
+    let (move_decimation, window_decimation) = decimations(&sc.controller, stroke_m, rate);
+    // The board's capture from `from`: the position's mean over each sample's ticks, the
+    // current's root mean square signed as at the last.
+    let capture = |from: usize, ticks: usize, decimation: u16| {
         run.samples
-            .iter()
-            .filter(|q| q.t_s >= from_s && q.t_s < end_s)
-            .map(|q| (q.x_meas_m, q.i_meas_a))
+            .get(from..(from + ticks).min(run.samples.len()))
+            .unwrap_or_default()
+            .chunks_exact(usize::from(decimation))
+            .take(ema::device::CAPTURE_CAPACITY)
+            .map(|c| {
+                let n = c.len() as f64;
+                let (x, i2) = c.iter().fold((0.0, 0.0), |(x, i2), q| {
+                    (x + q.x_meas_m, i2 + q.i_meas_a * q.i_meas_a)
+                });
+                let last = c.last().map_or(0.0, |q| q.i_meas_a);
+                (x / n, (i2 / n).sqrt().copysign(last))
+            })
             .collect::<Vec<_>>()
-    });
-    Ok(Ok(fit_spring(report, stroke_m, &holds)))
+    };
+    let holds = Holds {
+        moves: core::array::from_fn(|k| {
+            capture(k * hold_ticks, hold_ticks - window_ticks, move_decimation)
+        }),
+        move_dt_s: f64::from(move_decimation) / rate,
+        windows: core::array::from_fn(|k| {
+            capture(
+                (k + 1) * hold_ticks - window_ticks,
+                window_ticks,
+                window_decimation,
+            )
+        }),
+    };
+    let spring = fit_spring(report, stroke_m, &holds.windows);
+    Ok(Ok(Mechanics {
+        spring,
+        armature: fit_armature(report, stroke_m, &spring, &holds),
+    }))
 }
 
 /// The spring's rate and preload from the readings `(position [m], current [A])` of each
@@ -220,20 +323,7 @@ pub fn fit_spring(
     stroke_m: f64,
     holds: &[Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()],
 ) -> Spring {
-    let (open, closed) = (
-        f64::from(report.ends.open_m),
-        f64::from(report.ends.closed_m),
-    );
-    let (inv_open, inv_closed) = (
-        1.0 / f64::from(report.inductance.open_h),
-        1.0 / f64::from(report.inductance.closed_h),
-    );
-    let slope = (inv_open - inv_closed) / stroke_m;
-    let force = |y: f64, i: f64| {
-        let x = (stroke_m * (y - open) / (closed - open)).clamp(0.0, stroke_m);
-        let inv_l = inv_closed + (stroke_m - x) * slope;
-        (x, 0.5 * i * i * slope / (inv_l * inv_l))
-    };
+    let force = pull(report, stroke_m);
     let means = holds.each_ref().map(|w| {
         let (sx, sf) = w.iter().fold((0.0, 0.0), |(sx, sf), &(y, i)| {
             let (x, f) = force(y, i);
@@ -259,6 +349,28 @@ pub fn fit_spring(
         preload_n: preload.max(0.0),
         spread_n_per_m: 2.0 * (residual / (n - 2.0) / sxx).sqrt(),
         holds: means,
+    }
+}
+
+/// The magnet's pull the commissioning's `report` reads from a position reading `y` \[m\]
+/// and a current `i` \[A\], with the position corrected by the measured end stops:
+/// `(x [m], F [N])`. The pull is `F = i^2 L(x)^2 s / 2` with `1/L` linear in the gap
+/// through the two measured inductances, `s` its slope (the force of the two-inductance
+/// form); `x = stroke (y - y_open) / (y_closed - y_open)`.
+fn pull(report: &Report, stroke_m: f64) -> impl Fn(f64, f64) -> (f64, f64) {
+    let (open, closed) = (
+        f64::from(report.ends.open_m),
+        f64::from(report.ends.closed_m),
+    );
+    let (inv_open, inv_closed) = (
+        1.0 / f64::from(report.inductance.open_h),
+        1.0 / f64::from(report.inductance.closed_h),
+    );
+    let slope = (inv_open - inv_closed) / stroke_m;
+    move |y: f64, i: f64| {
+        let x = (stroke_m * (y - open) / (closed - open)).clamp(0.0, stroke_m);
+        let inv_l = inv_closed + (stroke_m - x) * slope;
+        (x, 0.5 * i * i * slope / (inv_l * inv_l))
     }
 }
 
@@ -344,7 +456,7 @@ impl ClosedLoop {
     }
 }
 
-/// Tunes the actuator `report` (and `spring`, when measured) measured on file `a`
+/// Tunes the actuator `report` (and `mechanics`, when measured) measured on file `a`
 /// ([`measured`]) at the board's rate, as `bench commission --tune` does, and runs its
 /// evaluation sequence on the true `plant`, the converter with its typical noise but no
 /// gain or offset error (the end stops are not yet applied to the calibration, so a
@@ -355,10 +467,10 @@ impl ClosedLoop {
 pub fn closed_loop(
     a: &Actuator,
     report: &Report,
-    spring: Option<&Spring>,
+    mechanics: Option<&Mechanics>,
     plant: &Params,
 ) -> Result<ClosedLoop, Error> {
-    let (m, _) = measured(a, report, spring)?;
+    let (m, _) = measured(a, report, mechanics)?;
     let rate = f64::from(a.board.rate_hz);
     let space = crate::tune::Space::for_actuator(&m, rate)?;
     let tuned = crate::tune::tune(
@@ -444,4 +556,158 @@ pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
         ends_m,
         code_m,
     })
+}
+
+/// The armature's mass and friction measured by [`fit_armature`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Armature {
+    /// Moving mass \[kg\].
+    pub mass_kg: f64,
+    /// Viscous friction \[N s/m\].
+    pub friction_n_s_per_m: f64,
+    /// Moves fitted.
+    pub moves: usize,
+}
+
+/// A move has settled once its position stays within this share of the move of its
+/// target: [`fit_armature`] fits each move up to then.
+pub const SETTLED_SHARE: f64 = 0.02;
+
+/// A move that comes this near a stop (as a share of the stroke) may have touched it,
+/// where the equation of motion [`fit_armature`] fits does not hold: it is left out.
+pub const STOP_SHARE: f64 = 0.01;
+
+/// The mass and the friction from the moves between the holds ([`Holds::moves`], the
+/// first, from the open stop, left out), with the `spring` measured from their windows
+/// and the commissioning's `report`; `None` when no move can be fitted.
+///
+/// Over a move, the equation of motion integrated twice from its start is
+/// `m (x - x0 - v0 t) + c ∫(x - x0) + K ∫∫(x - x0) + e t^2 / 2 = ∫∫(F - K' x - F0)`:
+/// `F` the magnet's pull read from the current and the measured inductances
+/// ([`fit_spring`]'s), `K'` and `F0` the spring's fit, `K` what that fit missed, `e` the
+/// force's error at the start. Both sides are integrals of the readings, whose noise they
+/// average out. `m`, `c` and `K` are common to the moves; each move has its own start
+/// `x0` and velocity `v0` (a loop that limit-cycles about a hold starts no move at rest)
+/// and `e`; all by least squares, each move up to where it has settled
+/// ([`SETTLED_SHARE`]: later readings carry the force's error at the end, which only grows
+/// in the double integral).
+///
+/// The board's capture averages over its ticks, the current as its root mean square: a
+/// sliding-mode current that alternates from tick to tick would, sampled, integrate to a
+/// pull off by its ripple, and its mean would miss the ripple's share of the pull.
+#[must_use]
+#[allow(clippy::cast_precision_loss)]
+pub fn fit_armature(
+    report: &Report,
+    stroke_m: f64,
+    spring: &Spring,
+    holds: &Holds,
+) -> Option<Armature> {
+    let force = pull(report, stroke_m);
+    let near_stop = |x: f64| x < STOP_SHARE * stroke_m || x > (1.0 - STOP_SHARE) * stroke_m;
+    let usable: Vec<usize> = (1..holds.moves.len())
+        .filter(|&k| {
+            !holds.moves[k]
+                .iter()
+                .any(|&(y, i)| near_stop(force(y, i).0))
+        })
+        .collect();
+    let moves = usable.len();
+    if moves == 0 {
+        return None;
+    }
+    // m, c, K; then x0, v0 and e of each move.
+    let unknowns = 3 + 3 * moves;
+    let dt = holds.move_dt_s;
+    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
+    for (u, &k) in usable.iter().enumerate() {
+        let seg = &holds.moves[k];
+        let (x0, x1) = (spring.holds.get(k - 1)?.0, spring.holds.get(k)?.0);
+        let settled = seg
+            .iter()
+            .rposition(|&(y, i)| (force(y, i).0 - x1).abs() > SETTLED_SHARE * (x1 - x0).abs())
+            .unwrap_or(0);
+        // Trapezoidal integrals from the move's start.
+        let (mut f1, mut f2, mut j1, mut j2) = (0.0, 0.0, 0.0, 0.0);
+        let mut last: Option<(f64, f64)> = None;
+        for (n, &(y, i)) in seg.iter().take(settled + 1).enumerate() {
+            let (x, f) = force(y, i);
+            let net = f - spring.n_per_m * x - spring.preload_n;
+            let dx = x - x0;
+            if let Some((net0, dx0)) = last {
+                let f1_next = f1 + 0.5 * dt * (net0 + net);
+                f2 += 0.5 * dt * (f1 + f1_next);
+                f1 = f1_next;
+                let j1_next = j1 + 0.5 * dt * (dx0 + dx);
+                j2 += 0.5 * dt * (j1 + j1_next);
+                j1 = j1_next;
+            }
+            last = Some((net, dx));
+            let t = n as f64 * dt;
+            let mut r = vec![0.0; unknowns];
+            r[0] = dx;
+            r[1] = j1;
+            r[2] = j2;
+            r[3 + 3 * u] = 1.0;
+            r[4 + 3 * u] = t;
+            r[5 + 3 * u] = 0.5 * t * t;
+            rows.push((r, f2));
+        }
+    }
+    let theta = least_squares(&rows, unknowns)?;
+    if theta[0].is_nan() || theta[0] <= 0.0 {
+        return None;
+    }
+    Some(Armature {
+        mass_kg: theta[0],
+        friction_n_s_per_m: theta[1],
+        moves,
+    })
+}
+
+/// Least squares `theta` of `y = r . theta` over `rows`, by the normal equations with the
+/// columns scaled to unit norm, solved by Gauss-Jordan elimination with partial pivoting;
+/// `None` when they are singular.
+fn least_squares(rows: &[(Vec<f64>, f64)], unknowns: usize) -> Option<Vec<f64>> {
+    let scale: Vec<f64> = (0..unknowns)
+        .map(|c| rows.iter().map(|(r, _)| r[c] * r[c]).sum::<f64>().sqrt())
+        .collect();
+    if scale.iter().any(|s| s.is_nan() || *s <= 0.0) {
+        return None;
+    }
+    // The normal equations, each row with its right-hand side last.
+    let mut a: Vec<Vec<f64>> = (0..unknowns)
+        .map(|p| {
+            let mut row: Vec<f64> = (0..unknowns)
+                .map(|q| {
+                    rows.iter().map(|(r, _)| r[p] * r[q]).sum::<f64>() / (scale[p] * scale[q])
+                })
+                .collect();
+            row.push(rows.iter().map(|(r, y)| r[p] * y).sum::<f64>() / scale[p]);
+            row
+        })
+        .collect();
+    for c in 0..unknowns {
+        let pivot = (c..unknowns).max_by(|&p, &q| a[p][c].abs().total_cmp(&a[q][c].abs()))?;
+        a.swap(c, pivot);
+        let lead = a[c].clone();
+        if lead[c].is_nan() || lead[c].abs() <= 1e-12 {
+            return None;
+        }
+        for (p, row) in a.iter_mut().enumerate() {
+            if p != c {
+                let f = row[c] / lead[c];
+                for (v, l) in row.iter_mut().zip(&lead).skip(c) {
+                    *v -= f * l;
+                }
+            }
+        }
+    }
+    Some(
+        a.iter()
+            .zip(&scale)
+            .enumerate()
+            .map(|(c, (row, s))| row[unknowns] / row[c] / s)
+            .collect(),
+    )
 }

@@ -52,7 +52,7 @@ impl Commissioning for Rig {
         let args = CommissionArgs {
             apply: false,
             tune: false,
-            spring: false,
+            mechanics: false,
             timeout_s: 60.0,
             out: None,
         };
@@ -334,7 +334,7 @@ fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
     let args = CommissionArgs {
         apply: false,
         tune: false,
-        spring: false,
+        mechanics: false,
         timeout_s: 60.0,
         out: Some(path.clone()),
     };
@@ -367,18 +367,20 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
         ..Options::default()
     });
     // Not the file's actuator: a coil 15 % above its resistance, surfaces 15 % smaller, a
-    // spring 25 % stiffer with a preload of a tenth of its force over the stroke.
+    // spring 25 % stiffer with a preload of a tenth of its force over the stroke, 15 % less
+    // mass and 20 % more friction.
     rig.coil(1.15 * f64::from(Actuator::PRODUCT.coil.resistance_ohm));
     rig.inject.send(Injection::Surfaces(0.85)).unwrap();
     let mech = Actuator::PRODUCT.mechanics;
     let spring_n_per_m = 1.25 * f64::from(mech.spring_n_per_m);
     let preload_n = 0.1 * spring_n_per_m * f64::from(mech.stroke_m);
+    let mass_kg = 0.85 * f64::from(mech.mass_kg);
     rig.inject
         .send(Injection::Mechanics {
-            mass_kg: f64::from(mech.mass_kg),
+            mass_kg,
             spring_n_per_m,
             preload_n,
-            friction_n_s_per_m: f64::from(mech.friction_n_s_per_m),
+            friction_n_s_per_m: 1.2 * f64::from(mech.friction_n_s_per_m),
         })
         .unwrap();
     rig.status();
@@ -388,7 +390,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     let args = CommissionArgs {
         apply: true,
         tune: true,
-        spring: true,
+        mechanics: true,
         timeout_s: 60.0,
         out: Some(path.clone()),
     };
@@ -451,6 +453,11 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
         board.mechanics.spring_n_per_m,
         measured.mechanics.spring_n_per_m
     );
+    // The mass from the moves between the holds: within 10 %, stored on the board.
+    let m = f64::from(board.mechanics.mass_kg);
+    eprintln!("mass {m} kg (plant {mass_kg})");
+    assert!((m / mass_kg - 1.0).abs() < 0.1, "{m}\n{printed}");
+    assert_eq!(board.mechanics.mass_kg, measured.mechanics.mass_kg);
     // Closed on the actuator it was commissioned on: a step to 3 mm meets the targets
     // (2 % settling within 0.2 s, overshoot at most 0.5 %, steady error at most 0.1 %).
     rig.link.done(Command::Arm).unwrap();

@@ -129,17 +129,18 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
     assert!(open < 2.0 && closed < 2.0, "{o:?}");
 }
 
-/// Seed of the plants whose spring is measured.
+/// Seed of the plants whose spring, mass and friction are measured.
 const SPRING_SEED: u64 = 0x5b71_0000_0000_0013;
 
 /// The spring's rate within 5 % and its preload within 2 % of the spring's force over the
-/// stroke, measured from the closed-loop holds ([`hil_sim::commissioning::spring`]) on
+/// stroke, and the mass within 10 %, measured from the closed-loop holds and the moves
+/// between them ([`hil_sim::commissioning::mechanics`]) on
 /// drawn products and valves (sensor offset and gain errors included, corrected by the
 /// measured end stops). Holds that a monitor ends (the default tuning on a plant far from
 /// the file: a few per cent of drawn valves, counted by `hil-sim commission valve --n
 /// 1000`) measure nothing and say why; at most one of each member's six.
 #[test]
-fn the_spring_and_its_preload_are_measured_from_closed_loop_holds() {
+fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
     use rand::SeedableRng;
     let mut rng = rand_pcg::Pcg64::seed_from_u64(SPRING_SEED);
     eprintln!("seed {SPRING_SEED:#x}");
@@ -151,8 +152,9 @@ fn the_spring_and_its_preload_are_measured_from_closed_loop_holds() {
             let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
             let report = o.report.unwrap();
             let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
-            let s = match hil_sim::commissioning::spring(&a, &report, &plant, Some(&draw)) {
-                Ok(Ok(s)) => s,
+            let (s, arm) = match hil_sim::commissioning::mechanics(&a, &report, &plant, Some(&draw))
+            {
+                Ok(Ok(m)) => (m.spring, m.armature),
                 Ok(Err(fault)) => {
                     eprintln!("{name}: holds ended by {fault}; {draw:?}");
                     ended += 1;
@@ -173,6 +175,18 @@ fn the_spring_and_its_preload_are_measured_from_closed_loop_holds() {
             );
             assert!(k.abs() < 0.05, "{name}: {s:?}, plant {plant:?}");
             assert!(f0.abs() < 0.02, "{name}: {s:?}, plant {plant:?}");
+            let Some(arm) = arm else {
+                panic!("{name}: no move fitted; {draw:?}")
+            };
+            let m = arm.mass_kg / plant.mass_kg - 1.0;
+            eprintln!(
+                "{name}: mass {:.4} kg ({:+.2} %), friction {:.3} N s/m (plant {:.3})",
+                arm.mass_kg,
+                100.0 * m,
+                arm.friction_n_s_per_m,
+                plant.friction_n_s_per_m
+            );
+            assert!(m.abs() < 0.1, "{name}: {arm:?}, plant {plant:?}");
         }
     }
 }

@@ -35,7 +35,7 @@ use serialport::SerialPort;
 use super::board::{Injection, Options, VirtualBoard};
 use super::link::Link;
 use super::{fault_name, Capture};
-use crate::commissioning::Spring;
+use crate::commissioning::{Holds, Mechanics};
 use crate::report::{self, sig, Figure, Panel, Series, Table};
 
 /// The link's speed \[baud\]: one definition, the core's, which the firmware's UART uses.
@@ -120,13 +120,15 @@ pub struct CommissionArgs {
     /// `<stem>-tune/`, `<stem>/`).
     #[arg(long, requires = "out")]
     pub tune: bool,
-    /// Then measures the spring's rate and preload: the loop closed with the measured coil
-    /// and circuit and the default tuning (for the holds only, then put back), the armature held at 1/8, 7/8,
-    /// 3/8 and 3/4 of the stroke, the magnet's pull at each hold read from the captured
-    /// current (the board drives the coil and the armature moves). `--out` writes the
-    /// spring, `--tune` tunes for it and `--apply` sets it.
+    /// Then measures the spring's rate and preload, the mass and the friction: the loop
+    /// closed with the measured coil and circuit and the default tuning (for the holds
+    /// only, then put back), the armature moved to and held at 1/8, 7/8, 3/8 and 3/4 of
+    /// the stroke, the magnet's pull read from the captured current (the board drives the
+    /// coil and the armature moves): the spring from the holds, the mass and the friction
+    /// from the moves. `--out` writes them, `--tune` tunes for them and `--apply` sets
+    /// them.
     #[arg(long)]
-    pub spring: bool,
+    pub mechanics: bool,
     /// Longest wait for the result (s).
     #[arg(long, default_value_t = 60.0)]
     pub timeout_s: f64,
@@ -424,8 +426,8 @@ pub fn commission<P: std::io::Read + Write>(
         1e6 * travel_m,
         1e6 * stroke_m
     )?;
-    let spring = if args.spring {
-        Some(measure_spring(link, &file, &report, out)?)
+    let mechanics = if args.mechanics {
+        Some(measure_mechanics(link, &file, &report, out)?)
     } else {
         None
     };
@@ -433,7 +435,7 @@ pub fn commission<P: std::io::Read + Write>(
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             report::create_dir(dir)?;
         }
-        std::fs::write(path, actuator_file(&file, &report, spring.as_ref())?)
+        std::fs::write(path, actuator_file(&file, &report, mechanics.as_ref())?)
             .map_err(|e| anyhow!("{}: {e}", path.display()))?;
         writeln!(out, "actuator file written: {}", path.display())?;
     }
@@ -495,20 +497,23 @@ pub fn commission<P: std::io::Read + Write>(
     Ok(report)
 }
 
-/// Measures the spring ([`crate::commissioning::fit_spring`]) on the board: sets the
-/// actuator `report` measured on the board's `file` with the default tuning (not stored),
-/// arms, captures a move to each position of [`crate::actuator::SEQUENCE`] held as in the
-/// evaluation sequence, disarms and puts the parameters in use before back (the stored
-/// set, or the built-in defaults). A fault during the holds ends it, named.
+/// Measures the spring, the mass and the friction on the board
+/// ([`crate::commissioning::fit_spring`], [`crate::commissioning::fit_armature`]): sets
+/// the actuator `report` measured on the board's `file` with the default tuning (not
+/// stored), arms, moves to each position of [`crate::actuator::SEQUENCE`] and holds it as
+/// the evaluation sequence does, capturing the move and then the hold's window at the
+/// [`crate::commissioning::decimations`], disarms and puts the parameters in use before
+/// back (the stored set, or the built-in defaults). A fault during the holds ends it,
+/// named.
 ///
 /// # Errors
 /// A refusal, no reply, a fault during the holds, a capture that does not finish.
-fn measure_spring<P: std::io::Read + Write>(
+fn measure_mechanics<P: std::io::Read + Write>(
     link: &mut Link<P>,
     file: &Actuator,
     report: &Report,
     out: &mut dyn Write,
-) -> anyhow::Result<Spring> {
+) -> anyhow::Result<Mechanics> {
     let (m, _) = crate::commissioning::measured(file, report, None)?;
     let tuning = m.tuning_or_default().map_err(|e| anyhow!("{e}"))?;
     let settings = m.settings().map_err(|e| anyhow!("{e}"))?;
@@ -516,21 +521,22 @@ fn measure_spring<P: std::io::Read + Write>(
     let rate_hz = f64::from(m.board.rate_hz);
     let hold_s = crate::actuator::segment_s(&settings, stroke_m);
     let capacity = u16::try_from(ema::device::CAPTURE_CAPACITY).unwrap_or(u16::MAX);
-    let ticks = (hold_s * rate_hz / f64::from(capacity)).ceil();
-    let decimation = if ticks >= f64::from(u16::MAX) {
-        u16::MAX
-    } else {
-        ticks as u16
-    };
+    let (move_decimation, window_decimation) =
+        crate::commissioning::decimations(&settings, stroke_m, rate_hz);
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let window_samples = ((crate::commissioning::HOLD_WINDOW_SHARE * hold_s * rate_hz
+        / f64::from(window_decimation))
+    .round()
+    .clamp(1.0, f64::from(capacity))) as u16;
     let sets = commissioned_sets(file, &m, &tuning)?;
     writeln!(
         out,
-        "spring: the loop closed with the measured coil and circuit, default tuning; holds of {} s at {}",
+        "spring, mass and friction: the loop closed with the measured coil and circuit, default tuning; holds of {} s at {}",
         sig(hold_s, 3),
         crate::actuator::SEQUENCE.map(|f| format!("{} mm", sig(f * stroke_m * 1e3, 3))).join(", ")
     )?;
     let stored = matches!(status(link)?.params, ema::protocol::Source::Stored);
-    let mut held = || -> anyhow::Result<[Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()]> {
+    let mut held = || -> anyhow::Result<Holds> {
         for (name, value) in &sets {
             link.done(Command::Set {
                 name,
@@ -558,37 +564,33 @@ fn measure_spring<P: std::io::Read + Write>(
             std::thread::sleep(Duration::from_millis(20));
         }
         link.done(Command::Arm)?;
-        let mut holds: [Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()] = Default::default();
-        for (hold, f) in holds.iter_mut().zip(crate::actuator::SEQUENCE) {
+        let mut holds = Holds {
+            move_dt_s: f64::from(move_decimation) / rate_hz,
+            ..Holds::default()
+        };
+        let readings = |c: &Capture| -> anyhow::Result<Vec<(f64, f64)>> {
+            if let Some(s) = c.samples.iter().find(|s| s.fault != 0) {
+                bail!("fault {} latched during the holds", fault_name(s.fault));
+            }
+            Ok(c.samples
+                .iter()
+                .map(|s| (f64::from(s.x_m), f64::from(s.i_a)))
+                .collect())
+        };
+        for (k, f) in crate::actuator::SEQUENCE.into_iter().enumerate() {
             #[allow(clippy::cast_possible_truncation)]
             let c = capture_move(
                 link,
                 capacity,
-                decimation,
+                move_decimation,
                 (f * stroke_m) as f32,
                 None,
                 rate_hz,
             )?;
-            if let Some(s) = c.samples.iter().find(|s| s.fault != 0) {
-                bail!(
-                    "fault {} latched during the hold at {} mm",
-                    fault_name(s.fault),
-                    sig(f * stroke_m * 1e3, 3)
-                );
-            }
-            let n = c.samples.len();
-            #[allow(
-                clippy::cast_precision_loss,
-                clippy::cast_possible_truncation,
-                clippy::cast_sign_loss
-            )]
-            let from = ((1.0 - crate::commissioning::HOLD_WINDOW_SHARE) * n as f64) as usize;
-            *hold = c
-                .samples
-                .iter()
-                .skip(from)
-                .map(|s| (f64::from(s.x_m), f64::from(s.i_a)))
-                .collect();
+            holds.moves[k] = readings(&c)?;
+            // The window: the hold's end, once the move has settled.
+            let c = capture_now(link, window_samples, window_decimation, rate_hz)?;
+            holds.windows[k] = readings(&c)?;
         }
         Ok(holds)
     };
@@ -603,7 +605,8 @@ fn measure_spring<P: std::io::Read + Write>(
     let holds = holds?;
     disarmed?;
     loaded?;
-    let s = crate::commissioning::fit_spring(report, stroke_m, &holds);
+    let s = crate::commissioning::fit_spring(report, stroke_m, &holds.windows);
+    let armature = crate::commissioning::fit_armature(report, stroke_m, &s, &holds);
     for (x, f) in s.holds {
         writeln!(
             out,
@@ -621,11 +624,29 @@ fn measure_spring<P: std::io::Read + Write>(
         file.mechanics.spring_n_per_m,
         file.mechanics.preload_n
     )?;
-    Ok(s)
+    match armature {
+        Some(arm) => writeln!(
+            out,
+            "mass {} kg, friction {} N s/m (the moves between the holds, {} fitted); the file says {} kg, {} N s/m",
+            sig(arm.mass_kg, 4),
+            sig(arm.friction_n_s_per_m, 3),
+            arm.moves,
+            file.mechanics.mass_kg,
+            file.mechanics.friction_n_s_per_m
+        )?,
+        None => writeln!(
+            out,
+            "mass and friction not measured: every move came near a stop; the file's kept"
+        )?,
+    }
+    Ok(Mechanics {
+        spring: s,
+        armature,
+    })
 }
 
 /// How near the open stop's reading, as a share of the stroke, the armature must read on
-/// five status polls in a row before [`measure_spring`]'s holds start.
+/// five status polls in a row before [`measure_mechanics`]'s holds start.
 const SPRING_START_SHARE: f32 = 0.01;
 
 /// Drawn plants `commission --tune` validates the tuning on.
@@ -633,7 +654,7 @@ const TUNE_VALIDATION_DRAWS: usize = 100;
 
 /// The parameters that carry a commissioned actuator `measured` (its magnetic circuit in
 /// the two-inductance form) on a board whose file is `board`: the resistance, the spring
-/// and its preload, and the magnetic circuit in the board's own form (its kind is fixed by
+/// and its preload, the mass and the friction, and the magnetic circuit in the board's own form (its kind is fixed by
 /// the firmware build).
 /// In the geometry form without spread, `1/L` is linear in the gap as in the measured
 /// one: the pole's sides are scaled for the measured airgap reluctance (the fringing
@@ -657,6 +678,11 @@ pub fn commissioned_params(
             measured.mechanics.spring_n_per_m,
         ),
         ("mechanics.preload_n", measured.mechanics.preload_n),
+        ("mechanics.mass_kg", measured.mechanics.mass_kg),
+        (
+            "mechanics.friction_n_s_per_m",
+            measured.mechanics.friction_n_s_per_m,
+        ),
     ];
     match board.magnetics {
         Magnetics::Inductance { .. } => {
@@ -767,7 +793,7 @@ fn save<P: std::io::Read + Write>(link: &mut Link<P>, out: &mut dyn Write) -> an
 }
 
 /// The actuator file a commissioning gives: the measured actuator
-/// ([`crate::commissioning::measured`], with the `spring` when measured), each measured
+/// ([`crate::commissioning::measured`], with the `mechanics` when measured), each measured
 /// value and its uncertainty, and the end stops, in comments at its head.
 ///
 /// # Errors
@@ -776,16 +802,30 @@ fn save<P: std::io::Read + Write>(link: &mut Link<P>, out: &mut dyn Write) -> an
 pub fn actuator_file(
     file: &ema::actuator::Actuator,
     report: &Report,
-    spring: Option<&Spring>,
+    mechanics: Option<&Mechanics>,
 ) -> anyhow::Result<String> {
     let r = report.resistance;
     let l = report.inductance;
     let e = report.ends;
-    let (a, moved) = crate::commissioning::measured(file, report, spring)?;
-    let spring_head = spring.map_or(String::new(), |s| {
+    let (a, moved) = crate::commissioning::measured(file, report, mechanics)?;
+    let spring_head = mechanics.map_or(String::new(), |m| {
+        let s = m.spring;
+        let armature = m.armature.map_or(
+            "#   mechanics.mass_kg and friction_n_s_per_m: the file's (no move to fit)\n"
+                .to_owned(),
+            |arm| {
+                format!(
+                    "#   mechanics.mass_kg = {}, mechanics.friction_n_s_per_m = {} (the {} moves \
+                     between the holds)\n",
+                    sig(arm.mass_kg, 4),
+                    sig(arm.friction_n_s_per_m, 3),
+                    arm.moves
+                )
+            },
+        );
         format!(
             "#   mechanics.spring_n_per_m = {} +- {} (two standard errors of the fit),\n\
-             #   mechanics.preload_n = {} (closed-loop holds at four positions)\n",
+             #   mechanics.preload_n = {} (closed-loop holds at four positions)\n{armature}",
             sig(s.n_per_m, 4),
             sig(s.spread_n_per_m, 2),
             sig(s.preload_n, 4)
@@ -1095,6 +1135,39 @@ fn capture_move<P: std::io::Read + Write>(
         trigger: Trigger::Move,
     })?;
     link.done(Command::Move { position_m, time_s })?;
+    read_capture(link, samples, decimation, rate_hz)
+}
+
+/// Captures `samples` readings, one every `decimation` ticks, from now, and reads the
+/// capture back.
+///
+/// # Errors
+/// A refusal, no reply, a capture that does not finish.
+fn capture_now<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    samples: u16,
+    decimation: u16,
+    rate_hz: f64,
+) -> anyhow::Result<Capture> {
+    link.done(Command::Capture {
+        samples,
+        decimation,
+        trigger: Trigger::Now,
+    })?;
+    read_capture(link, samples, decimation, rate_hz)
+}
+
+/// Waits for the capture started (`samples` every `decimation` ticks) to finish and reads
+/// it back.
+///
+/// # Errors
+/// A refusal, no reply, a capture that does not finish.
+fn read_capture<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    samples: u16,
+    decimation: u16,
+    rate_hz: f64,
+) -> anyhow::Result<Capture> {
     let span_s = f64::from(samples) * f64::from(decimation) / rate_hz;
     let deadline = Instant::now() + Duration::from_secs_f64(10.0 * span_s + 5.0);
     let total = loop {

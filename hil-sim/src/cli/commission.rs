@@ -2,7 +2,8 @@
 //! on an actuator's file against N plants drawn wider than it (see
 //! [`crate::commissioning::Draw`]), in parallel: the identification errors' median, 99th
 //! percentile and maximum, the actuator time, the largest coil current, the endings; then
-//! the spring measured from closed-loop holds ([`crate::commissioning::spring`]); with
+//! the spring, the mass and the friction measured from closed-loop holds
+//! ([`crate::commissioning::mechanics`]); with
 //! `--tune`, each commissioned actuator tuned and run in closed loop on its true plant.
 
 use std::collections::BTreeMap;
@@ -57,26 +58,35 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             let Ok(r) = o.report else {
                 return Ok((o, None, None));
             };
-            let spring = commissioning::spring(&a, &r, &plant, Some(&draw))?;
+            let mechanics = commissioning::mechanics(&a, &r, &plant, Some(&draw))?;
             // Relative rate error; preload error as a share of the spring's force over
-            // the stroke.
-            let spring_errors = spring.map(|s| {
+            // the stroke; relative mass and friction errors (NaN: no move fitted).
+            let mechanics_errors = mechanics.map(|m| {
+                let (mass, friction) = m.armature.map_or((f64::NAN, f64::NAN), |arm| {
+                    (
+                        arm.mass_kg / plant.mass_kg - 1.0,
+                        arm.friction_n_s_per_m / plant.friction_n_s_per_m - 1.0,
+                    )
+                });
                 [
-                    s.n_per_m / plant.spring_n_per_m - 1.0,
-                    (s.preload_n - plant.preload_n) / (plant.spring_n_per_m * plant.stroke_m),
+                    m.spring.n_per_m / plant.spring_n_per_m - 1.0,
+                    (m.spring.preload_n - plant.preload_n)
+                        / (plant.spring_n_per_m * plant.stroke_m),
+                    mass,
+                    friction,
                 ]
             });
             let closed = if args.tune {
                 Some(commissioning::closed_loop(
                     &a,
                     &r,
-                    spring.ok().as_ref(),
+                    mechanics.ok().as_ref(),
                     &plant,
                 )?)
             } else {
                 None
             };
-            Ok((o, Some(spring_errors), closed))
+            Ok((o, Some(mechanics_errors), closed))
         })
         .collect::<Result<Vec<_>, crate::Error>>()?;
     let outcomes: Vec<_> = runs.iter().map(|(o, _, _)| *o).collect();
@@ -130,23 +140,30 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         row(&mut t, what, v, Some(*target));
     }
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut spring: Vec<[f64; 2]> = Vec::new();
+    let mut mechanics: Vec<[f64; 4]> = Vec::new();
     for s in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
         match s {
-            Ok(e) => spring.push(*e),
+            Ok(e) => mechanics.push(*e),
             Err(f) => *holds_faulted.entry(f).or_default() += 1,
         }
     }
     for (i, (what, target)) in [
         ("spring rate error [%]", Some(5.0)),
         ("preload error [% of K x stroke]", None),
+        ("mass error [%]", Some(10.0)),
+        ("friction error [%]", None),
     ]
     .into_iter()
     .enumerate()
     {
-        let v = spring.iter().map(|e| 100.0 * e[i].abs()).collect();
+        let v = mechanics
+            .iter()
+            .map(|e| 100.0 * e[i].abs())
+            .filter(|e| !e.is_nan())
+            .collect();
         row(&mut t, what, v, target);
     }
+    let unfitted = mechanics.iter().filter(|e| e[2].is_nan()).count();
     let took = outcomes.iter().map(|o| o.took_s).collect();
     let peak = outcomes.iter().map(|o| 100.0 * o.peak_a / rated).collect();
     row(&mut t, "actuator time [s]", took, Some(10.0));
@@ -200,9 +217,10 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         .collect();
     writeln!(
         out,
-        "spring measured on {} of the {} commissioned; holds ended by a fault: {}",
-        spring.len(),
+        "spring measured on {} of the {} commissioned, the mass and the friction on {} (no move to fit: {unfitted}); holds ended by a fault: {}",
+        mechanics.len(),
         errors.len(),
+        mechanics.len() - unfitted,
         if holds_faulted.is_empty() {
             "none".to_owned()
         } else {

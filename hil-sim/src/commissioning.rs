@@ -174,6 +174,42 @@ pub struct Mechanics {
     pub armature: Option<Armature>,
 }
 
+impl Mechanics {
+    /// The spring from the `holds`' windows ([`fit_spring`]), the mass and the friction
+    /// from their moves ([`fit_armature`]). When a hold is not at rest ([`REST_SHARE`]),
+    /// the spring's rate is corrected by what the moves read it missed
+    /// ([`Armature::stiffness_n_per_m`]), its line turned about the holds' mean: a loop
+    /// that limit-cycles about its holds (a drawn 1 kg plunger) reads the rate from their
+    /// mean positions and pulls up to a third off, where the moves' dynamics read it
+    /// within a few per cent. At rest the holds read it better than the moves.
+    #[must_use]
+    pub fn fit(report: &Report, stroke_m: f64, holds: &Holds) -> Self {
+        let mut spring = fit_spring(report, stroke_m, &holds.windows);
+        let armature = fit_armature(report, stroke_m, &spring, holds);
+        let force = pull(report, stroke_m);
+        #[allow(clippy::cast_precision_loss)]
+        let restless = holds.windows.iter().any(|w| {
+            let x: Vec<f64> = w.iter().map(|&(y, i)| force(y, i).0).collect();
+            let n = x.len() as f64;
+            let mean = x.iter().sum::<f64>() / n;
+            (x.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt() > REST_SHARE * stroke_m
+        });
+        if let Some(arm) = armature.filter(|_| restless) {
+            #[allow(clippy::cast_precision_loss)]
+            let n = spring.holds.len() as f64;
+            let x = spring.holds.iter().map(|h| h.0).sum::<f64>() / n;
+            let f = spring.holds.iter().map(|h| h.1).sum::<f64>() / n;
+            spring.n_per_m += arm.stiffness_n_per_m;
+            spring.preload_n = (f - spring.n_per_m * x).max(0.0);
+        }
+        Self { spring, armature }
+    }
+}
+
+/// A hold whose window's position spreads (one standard deviation) over more than this
+/// share of the stroke is not at rest: the loop limit-cycles about it.
+pub const REST_SHARE: f64 = 0.002;
+
 /// The readings of the holds as the board captures them, one `(position [m], current
 /// [A])` per capture sample: the position's mean over its ticks, the current's root mean
 /// square (`ema::device`'s capture).
@@ -300,11 +336,7 @@ pub fn mechanics(
             )
         }),
     };
-    let spring = fit_spring(report, stroke_m, &holds.windows);
-    Ok(Ok(Mechanics {
-        spring,
-        armature: fit_armature(report, stroke_m, &spring, &holds),
-    }))
+    Ok(Ok(Mechanics::fit(report, stroke_m, &holds)))
 }
 
 /// The spring's rate and preload from the readings `(position [m], current [A])` of each
@@ -565,6 +597,9 @@ pub struct Armature {
     pub mass_kg: f64,
     /// Viscous friction \[N s/m\].
     pub friction_n_s_per_m: f64,
+    /// The stiffness the spring's fit missed, as the moves read it (`K` in
+    /// [`fit_armature`]) \[N/m\].
+    pub stiffness_n_per_m: f64,
     /// Moves fitted.
     pub moves: usize,
 }
@@ -661,6 +696,7 @@ pub fn fit_armature(
     Some(Armature {
         mass_kg: theta[0],
         friction_n_s_per_m: theta[1],
+        stiffness_n_per_m: theta[2],
         moves,
     })
 }
@@ -679,9 +715,7 @@ fn least_squares(rows: &[(Vec<f64>, f64)], unknowns: usize) -> Option<Vec<f64>> 
     let mut a: Vec<Vec<f64>> = (0..unknowns)
         .map(|p| {
             let mut row: Vec<f64> = (0..unknowns)
-                .map(|q| {
-                    rows.iter().map(|(r, _)| r[p] * r[q]).sum::<f64>() / (scale[p] * scale[q])
-                })
+                .map(|q| rows.iter().map(|(r, _)| r[p] * r[q]).sum::<f64>() / (scale[p] * scale[q]))
                 .collect();
             row.push(rows.iter().map(|(r, y)| r[p] * y).sum::<f64>() / scale[p]);
             row

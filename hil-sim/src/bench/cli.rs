@@ -605,8 +605,10 @@ fn measure_mechanics<P: std::io::Read + Write>(
     let holds = holds?;
     disarmed?;
     loaded?;
-    let s = crate::commissioning::fit_spring(report, stroke_m, &holds.windows);
-    let armature = crate::commissioning::fit_armature(report, stroke_m, &s, &holds);
+    let Mechanics {
+        spring: s,
+        armature,
+    } = Mechanics::fit(report, stroke_m, &holds);
     for (x, f) in s.holds {
         writeln!(
             out,

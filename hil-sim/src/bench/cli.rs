@@ -583,13 +583,12 @@ fn measure_mechanics<P: std::io::Read + Write>(
                 link,
                 capacity,
                 move_decimation,
-                (f * stroke_m) as f32,
-                None,
+                Some(((f * stroke_m) as f32, None)),
                 rate_hz,
             )?;
             holds.moves[k] = readings(&c)?;
             // The window: the hold's end, once the move has settled.
-            let c = capture_now(link, window_samples, window_decimation, rate_hz)?;
+            let c = capture_move(link, window_samples, window_decimation, None, rate_hz)?;
             holds.windows[k] = readings(&c)?;
         }
         Ok(holds)
@@ -1118,8 +1117,8 @@ pub struct CaptureOutcome {
 }
 
 /// Captures `samples` readings, one every `decimation` ticks, of a move to `position_m`
-/// (the board armed; `time_s` the move's duration, the board's shaping if `None`) and
-/// reads the capture back.
+/// (the board armed; `time_s` the move's duration, the board's shaping if `None`), or
+/// from now without a move (`to` is `None`), and reads the capture back.
 ///
 /// # Errors
 /// A refusal, no reply, a capture that does not finish.
@@ -1127,35 +1126,21 @@ fn capture_move<P: std::io::Read + Write>(
     link: &mut Link<P>,
     samples: u16,
     decimation: u16,
-    position_m: f32,
-    time_s: Option<f32>,
+    to: Option<(f32, Option<f32>)>,
     rate_hz: f64,
 ) -> anyhow::Result<Capture> {
     link.done(Command::Capture {
         samples,
         decimation,
-        trigger: Trigger::Move,
+        trigger: if to.is_some() {
+            Trigger::Move
+        } else {
+            Trigger::Now
+        },
     })?;
-    link.done(Command::Move { position_m, time_s })?;
-    read_capture(link, samples, decimation, rate_hz)
-}
-
-/// Captures `samples` readings, one every `decimation` ticks, from now, and reads the
-/// capture back.
-///
-/// # Errors
-/// A refusal, no reply, a capture that does not finish.
-fn capture_now<P: std::io::Read + Write>(
-    link: &mut Link<P>,
-    samples: u16,
-    decimation: u16,
-    rate_hz: f64,
-) -> anyhow::Result<Capture> {
-    link.done(Command::Capture {
-        samples,
-        decimation,
-        trigger: Trigger::Now,
-    })?;
+    if let Some((position_m, time_s)) = to {
+        link.done(Command::Move { position_m, time_s })?;
+    }
     read_capture(link, samples, decimation, rate_hz)
 }
 
@@ -1220,8 +1205,7 @@ pub fn capture<P: std::io::Read + Write>(
         link,
         a.samples,
         a.decimation,
-        (a.position_mm * 1e-3) as f32,
-        a.time_s.map(|t| t as f32),
+        Some(((a.position_mm * 1e-3) as f32, a.time_s.map(|t| t as f32))),
         rate,
     )?;
     let (sc, run) = super::prediction(&params, &capture, a.noise)?;

@@ -158,7 +158,8 @@ pub struct Spring {
     /// Preload at the open stop \[N\] (a fit below zero, a spring without preload read
     /// through the noise, is taken as none).
     pub preload_n: f64,
-    /// Two standard errors of the rate, from the fit's residuals \[N/m\].
+    /// Two standard errors of the rate, from the holds' fit's residuals (kept when the
+    /// moves correct the rate: [`Mechanics::fit`]) \[N/m\].
     pub spread_n_per_m: f64,
     /// The holds: corrected position \[m\] and mean magnetic force \[N\].
     pub holds: [(f64, f64); crate::actuator::SEQUENCE.len()],

@@ -129,6 +129,24 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
     assert!(open < 2.0 && closed < 2.0, "{o:?}");
 }
 
+/// A plant drawn off actuator `a`, commissioned, then held in closed loop: the draw, the
+/// true plant and what the holds measured (`Err`: the fault that ended them).
+fn holds_on_a_drawn_plant(
+    a: &ema::actuator::Actuator,
+    rng: &mut rand_pcg::Pcg64,
+) -> (
+    hil_sim::commissioning::Draw,
+    hil_sim::plant::Params,
+    Result<hil_sim::commissioning::Mechanics, &'static str>,
+) {
+    let draw = hil_sim::commissioning::Draw::new(rng);
+    let o = hil_sim::commissioning::run(a, Some(&draw)).unwrap();
+    let report = o.report.unwrap();
+    let plant = hil_sim::commissioning::true_plant(a, Some(&draw)).unwrap();
+    let m = hil_sim::commissioning::mechanics(a, &report, &plant, Some(&draw)).unwrap();
+    (draw, plant, m)
+}
+
 /// Seed of the plants whose spring, mass and friction are measured.
 const SPRING_SEED: u64 = 0x5b71_0000_0000_0013;
 
@@ -148,20 +166,15 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
         let (_, a) = hil_sim::actuator::load(name).unwrap();
         let mut ended = 0;
         for _ in 0..6 {
-            let draw = hil_sim::commissioning::Draw::new(&mut rng);
-            let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
-            let report = o.report.unwrap();
-            let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
-            let (s, arm) = match hil_sim::commissioning::mechanics(&a, &report, &plant, Some(&draw))
-            {
-                Ok(Ok(m)) => (m.spring, m.armature),
-                Ok(Err(fault)) => {
+            let (draw, plant, measured) = holds_on_a_drawn_plant(&a, &mut rng);
+            let (s, arm) = match measured {
+                Ok(m) => (m.spring, m.armature),
+                Err(fault) => {
                     eprintln!("{name}: holds ended by {fault}; {draw:?}");
                     ended += 1;
                     assert!(ended <= 1, "{name}: {ended} of 6 holds ended by a fault");
                     continue;
                 }
-                Err(e) => panic!("{name}: {e}"),
             };
             let k = s.n_per_m / plant.spring_n_per_m - 1.0;
             let f0 = (s.preload_n - plant.preload_n) / (plant.spring_n_per_m * plant.stroke_m);
@@ -197,7 +210,8 @@ const RESTLESS_SEED: u64 = 0x5b71_0000_0000_0027;
 /// A drawn 1 kg plunger limit-cycles about its holds with the default tuning, so the holds'
 /// mean positions and pulls read its spring's rate up to a third off; the moves between
 /// them correct it ([`hil_sim::commissioning::Mechanics::fit`]): within 5 % on six drawn
-/// plungers whose holds no monitor ends, and the mass within 10 %.
+/// plungers whose holds no monitor ends (of at most twelve drawn: a fifth of drawn
+/// plungers' holds end by `tracking`), and the mass within 10 %.
 #[test]
 fn a_plunger_limit_cycling_about_its_holds_has_its_spring_read_from_the_moves() {
     use rand::SeedableRng;
@@ -205,13 +219,11 @@ fn a_plunger_limit_cycling_about_its_holds_has_its_spring_read_from_the_moves() 
     eprintln!("seed {RESTLESS_SEED:#x}");
     let (_, a) = hil_sim::actuator::load("plunger-1kg").unwrap();
     let mut measured = 0;
-    while measured < 6 {
-        let draw = hil_sim::commissioning::Draw::new(&mut rng);
-        let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
-        let report = o.report.unwrap();
-        let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
-        let Ok(m) = hil_sim::commissioning::mechanics(&a, &report, &plant, Some(&draw)).unwrap()
-        else {
+    for _ in 0..12 {
+        if measured == 6 {
+            break;
+        }
+        let (_, plant, Ok(m)) = holds_on_a_drawn_plant(&a, &mut rng) else {
             continue;
         };
         measured += 1;
@@ -228,4 +240,5 @@ fn a_plunger_limit_cycling_about_its_holds_has_its_spring_read_from_the_moves() 
         assert!(k.abs() < 0.05, "{m:?}, plant {plant:?}");
         assert!(mass.abs() < 0.1, "{m:?}, plant {plant:?}");
     }
+    assert_eq!(measured, 6, "holds ended by a fault on most of 12 plungers");
 }

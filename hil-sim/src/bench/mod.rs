@@ -306,7 +306,8 @@ pub fn capture_trace(capture: &Capture, at_s: f64, rate_hz: f64) -> Vec<sim::Sam
 #[must_use]
 pub fn prediction_samples(run: &Run, capture: &Capture, at_s: f64, rate_hz: f64) -> Vec<Sample> {
     let start = (at_s * rate_hz).round() as usize;
-    let d = usize::from(capture.decimation.max(1));
+    let ticks_per_sample = capture.decimation.max(1);
+    let d = usize::from(ticks_per_sample);
     (0..capture.samples.len())
         .filter_map(|k| {
             let ticks = run.samples.get(start + k * d..start + (k + 1) * d)?;
@@ -315,7 +316,7 @@ pub fn prediction_samples(run: &Run, capture: &Capture, at_s: f64, rate_hz: f64)
                 let sum = ticks.iter().fold(None, |sum: Option<f32>, p| {
                     Some(sum.map_or(f(p), |s| s + f(p)))
                 });
-                sum.unwrap_or(0.0) / f32::from(capture.decimation.max(1))
+                sum.unwrap_or(0.0) / f32::from(ticks_per_sample)
             };
             let i_last = last.i_meas_a as f32;
             Some(Sample {

@@ -25,6 +25,11 @@
 //!    Monte Carlo sample of drawn plants at every rate (interior plants and other noise
 //!    realisations find what the corners miss). The first candidate, in screening order,
 //!    that passes both is chosen.
+//! 6. **Refinement**: when no point of the grid passes, the [`REFINE_SEEDS`] best are
+//!    refined: their neighbours half a grid step away (`alpha` and the observer a factor
+//!    `2^(1/4)` either way, the margin halfway to the next) are screened, run on the
+//!    corners and validated the same way. An actuator whose best grid point misses a
+//!    target by a few per cent is often met between the points.
 //!
 //! When no candidate passes, [`Report::diagnosis`] names the target that stays out of
 //! reach on the best candidate, at which rate, and by how much.
@@ -416,101 +421,68 @@ pub fn tune(
     let candidates = space.candidates(f64::from(act.board.rate_hz));
 
     // Theorem 1 and the screening run, in parallel over the candidates.
-    let mut evaluations: Vec<Evaluation> = candidates
-        .par_iter()
-        .map(|c| -> Result<Evaluation, Error> {
-            let theorem = theorem(&base, c.alpha)?;
-            let mut e = Evaluation {
-                candidate: *c,
-                theorem,
-                screen: f64::INFINITY,
-                worst: Vec::new(),
-                score: f64::INFINITY,
-                complete: false,
-                limiting: None,
-                validated: None,
-            };
-            if !theorem.holds() {
-                e.limiting = Some(("Theorem 1".into(), own_rate));
-                return Ok(e);
-            }
-            let sc = condition(name, act, c, own_rate, substeps)?;
-            let t = Targets::for_scenario(&sc);
-            let w = Worst::of([&crate::run(&sc)?.metrics], &t);
-            let (score, what) = judge(&w, &t);
-            e.screen = score;
-            e.limiting = Some((what.into(), own_rate));
-            Ok(e)
-        })
-        .collect::<Result<_, _>>()?;
-
-    // The worst case, best screened first: every corner plant at every rate, stopping at
-    // the first miss; a candidate that passes is validated on drawn plants, and the first
-    // that passes both is chosen.
-    let mut order: Vec<usize> = (0..evaluations.len())
-        .filter(|&k| evaluations.get(k).is_some_and(|e| e.screen <= SCREEN))
-        .collect();
-    order.sort_by(|&a, &b| evaluations[a].screen.total_cmp(&evaluations[b].screen));
-    let mut chosen = None;
-    let mut validation = Vec::new();
-    for k in order {
-        let Some(e) = evaluations.get_mut(k) else {
-            continue;
-        };
-        let mut score = 0.0_f64;
-        let mut worst = Vec::new();
-        let mut limiting = None;
-        let mut complete = true;
-        for &rate in rates_hz {
-            let sc = condition(name, act, &e.candidate, rate, substeps)?;
-            let t = Targets::for_scenario(&sc);
-            let runs = plants
-                .par_iter()
-                .map(|p| {
-                    crate::run(&sc.clone().with_plant(TruePlant::Given(p.clone())))
-                        .map(|r| r.metrics)
-                })
-                .collect::<Result<Vec<_>, _>>()?;
-            let w = Worst::of(&runs, &t);
-            let (s, what) = judge(&w, &t);
-            if s > score {
-                score = s;
-                limiting = Some((what.to_owned(), rate));
-            }
-            worst.push(w);
-            if score > 1.0 {
-                complete = false;
-                break;
+    let screen = |cs: &[Candidate]| -> Result<Vec<Evaluation>, Error> {
+        cs.par_iter()
+            .map(|c| -> Result<Evaluation, Error> {
+                let theorem = theorem(&base, c.alpha)?;
+                let mut e = Evaluation {
+                    candidate: *c,
+                    theorem,
+                    screen: f64::INFINITY,
+                    worst: Vec::new(),
+                    score: f64::INFINITY,
+                    complete: false,
+                    limiting: None,
+                    validated: None,
+                };
+                if !theorem.holds() {
+                    e.limiting = Some(("Theorem 1".into(), own_rate));
+                    return Ok(e);
+                }
+                let sc = condition(name, act, c, own_rate, substeps)?;
+                let t = Targets::for_scenario(&sc);
+                let w = Worst::of([&crate::run(&sc)?.metrics], &t);
+                let (score, what) = judge(&w, &t);
+                e.screen = score;
+                e.limiting = Some((what.into(), own_rate));
+                Ok(e)
+            })
+            .collect()
+    };
+    let search = Search {
+        name,
+        act,
+        rates_hz,
+        substeps,
+        plants: &plants,
+        validation_draws,
+    };
+    let mut evaluations = screen(&candidates)?;
+    let mut found = search.worst_case(&mut evaluations)?;
+    if found.is_none() {
+        // The grid's best, refined: the neighbours of the best few between their grid
+        // points.
+        let mut best: Vec<&Evaluation> =
+            evaluations.iter().filter(|e| e.score.is_finite()).collect();
+        best.sort_by(|a, b| a.score.total_cmp(&b.score));
+        let nyquist_quarter = 0.25 * std::f64::consts::PI * f64::from(act.board.rate_hz);
+        let mut refined: Vec<Candidate> = Vec::new();
+        for e in best.iter().take(REFINE_SEEDS) {
+            for c in e.candidate.neighbours(&space.margin) {
+                let known = evaluations.iter().any(|e| e.candidate == c) || refined.contains(&c);
+                if !known && c.observer_rad_s < nyquist_quarter {
+                    refined.push(c);
+                }
             }
         }
-        e.score = score;
-        e.worst = worst;
-        e.limiting = limiting;
-        e.complete = complete;
-        if !complete {
-            continue;
-        }
-        let mut checked = Vec::new();
-        for &rate in rates_hz {
-            let sc = condition(name, act, &e.candidate, rate, substeps)?;
-            let t = Targets::for_scenario(&sc);
-            let draws = montecarlo_with(&sc, validation_draws, VALIDATION_SEED, false)?;
-            let w = Worst::of_draws(&draws, &t);
-            let misses = w.misses(&t);
-            checked.push((w, t));
-            if let Some(what) = misses.first() {
-                e.validated = Some(false);
-                e.limiting = Some((format!("{what} on drawn plants"), rate));
-                break;
-            }
-        }
-        if e.validated.is_none() {
-            e.validated = Some(true);
-            chosen = Some(e.clone());
-            validation = checked;
-            break;
-        }
+        let mut more = screen(&refined)?;
+        found = search.worst_case(&mut more)?;
+        evaluations.extend(more);
     }
+    let (chosen, validation) = match found {
+        Some((chosen, validation)) => (Some(chosen), validation),
+        None => (None, Vec::new()),
+    };
     let tuned = chosen.as_ref().map(|c| Actuator {
         tuning: Some(c.candidate.tuning()),
         ..*act
@@ -534,6 +506,127 @@ pub fn tune(
         validation,
         diagnosis,
     })
+}
+
+/// The grid's best candidates [`tune`] refines when none of the grid passes.
+pub const REFINE_SEEDS: usize = 3;
+
+/// The steps of the refinement around a grid point: `alpha` and the observer a factor
+/// `2^(1/4)` either way (half the grid's step), the margin halfway to its neighbours.
+const REFINE_FACTOR: f64 = 1.189_207_115_002_721;
+
+impl Candidate {
+    /// The refinement's points around this one, itself left out: `alpha` and the observer
+    /// by [`REFINE_FACTOR`] either way, the margin halfway to its neighbours in
+    /// `margins` (sorted), the disturbance model kept.
+    fn neighbours(&self, margins: &[f64]) -> Vec<Candidate> {
+        let below = margins.iter().copied().rfind(|m| *m < self.margin);
+        let above = margins.iter().copied().find(|m| *m > self.margin);
+        let mut ms = vec![self.margin];
+        ms.extend(below.map(|m| round3(0.5 * (m + self.margin))));
+        ms.extend(above.map(|m| round3(0.5 * (m + self.margin))));
+        let steps = [1.0 / REFINE_FACTOR, 1.0, REFINE_FACTOR];
+        let mut out = Vec::new();
+        for a in steps {
+            for o in steps {
+                for &margin in &ms {
+                    let c = Candidate {
+                        alpha: round3(self.alpha * a),
+                        observer_rad_s: round3(self.observer_rad_s * o),
+                        margin,
+                        follows_force: self.follows_force,
+                    };
+                    if c != *self {
+                        out.push(c);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// A candidate chosen, with its validation at every rate.
+type Chosen = (Evaluation, Vec<(Worst, Targets)>);
+
+/// What [`tune`] runs each candidate on.
+struct Search<'a> {
+    name: &'a str,
+    act: &'a Actuator,
+    rates_hz: &'a [f64],
+    substeps: u32,
+    plants: &'a [Params],
+    validation_draws: usize,
+}
+
+impl Search<'_> {
+    /// The worst case, best screened first: every corner plant at every rate, stopping at
+    /// the first miss; a candidate that passes is validated on drawn plants, and the first
+    /// that passes both is returned with its validation.
+    fn worst_case(&self, evaluations: &mut [Evaluation]) -> Result<Option<Chosen>, Error> {
+        let mut order: Vec<usize> = (0..evaluations.len())
+            .filter(|&k| evaluations.get(k).is_some_and(|e| e.screen <= SCREEN))
+            .collect();
+        order.sort_by(|&a, &b| evaluations[a].screen.total_cmp(&evaluations[b].screen));
+        for k in order {
+            let Some(e) = evaluations.get_mut(k) else {
+                continue;
+            };
+            let mut score = 0.0_f64;
+            let mut worst = Vec::new();
+            let mut limiting = None;
+            let mut complete = true;
+            for &rate in self.rates_hz {
+                let sc = condition(self.name, self.act, &e.candidate, rate, self.substeps)?;
+                let t = Targets::for_scenario(&sc);
+                let runs = self
+                    .plants
+                    .par_iter()
+                    .map(|p| {
+                        crate::run(&sc.clone().with_plant(TruePlant::Given(p.clone())))
+                            .map(|r| r.metrics)
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                let w = Worst::of(&runs, &t);
+                let (s, what) = judge(&w, &t);
+                if s > score {
+                    score = s;
+                    limiting = Some((what.to_owned(), rate));
+                }
+                worst.push(w);
+                if score > 1.0 {
+                    complete = false;
+                    break;
+                }
+            }
+            e.score = score;
+            e.worst = worst;
+            e.limiting = limiting;
+            e.complete = complete;
+            if !complete {
+                continue;
+            }
+            let mut checked = Vec::new();
+            for &rate in self.rates_hz {
+                let sc = condition(self.name, self.act, &e.candidate, rate, self.substeps)?;
+                let t = Targets::for_scenario(&sc);
+                let draws = montecarlo_with(&sc, self.validation_draws, VALIDATION_SEED, false)?;
+                let w = Worst::of_draws(&draws, &t);
+                let misses = w.misses(&t);
+                checked.push((w, t));
+                if let Some(what) = misses.first() {
+                    e.validated = Some(false);
+                    e.limiting = Some((format!("{what} on drawn plants"), rate));
+                    break;
+                }
+            }
+            if e.validated.is_none() {
+                e.validated = Some(true);
+                return Ok(Some((e.clone(), checked)));
+            }
+        }
+        Ok(None)
+    }
 }
 
 /// What keeps the best candidate from passing, in words: the lowest complete score, or
@@ -680,5 +773,40 @@ mod tests {
         let tuned = f64::from(Actuator::PRODUCT.tuning.unwrap().alpha_per_s);
         let (lo, hi) = (product.alpha[0], *product.alpha.last().unwrap());
         assert!(lo < tuned && tuned < hi, "{product:?}");
+    }
+
+    #[test]
+    fn the_refinement_looks_half_a_grid_step_around_a_point() {
+        let c = Candidate {
+            alpha: 139.0,
+            observer_rad_s: 208.0,
+            margin: 0.35,
+            follows_force: true,
+        };
+        let n = c.neighbours(&MARGINS);
+        // Three alphas, three observers, three margins, the point itself left out.
+        assert_eq!(n.len(), 26, "{n:?}");
+        assert!(!n.contains(&c));
+        let alphas: Vec<f64> = n.iter().map(|c| c.alpha).collect();
+        assert!(
+            alphas.contains(&117.0) && alphas.contains(&165.0),
+            "{alphas:?}"
+        );
+        let observers: Vec<f64> = n.iter().map(|c| c.observer_rad_s).collect();
+        assert!(
+            observers.contains(&175.0) && observers.contains(&247.0),
+            "{observers:?}"
+        );
+        let margins: Vec<f64> = n.iter().map(|c| c.margin).collect();
+        assert!(
+            margins.contains(&0.275) && margins.contains(&0.425),
+            "{margins:?}"
+        );
+        assert!(n.iter().all(|c| c.follows_force));
+        // At the end of the margins, no step beyond them.
+        let top = Candidate { margin: 0.85, ..c };
+        let n = top.neighbours(&MARGINS);
+        assert_eq!(n.len(), 17, "{n:?}");
+        assert!(n.iter().all(|c| c.margin <= 0.85));
     }
 }

@@ -655,8 +655,8 @@ const TUNE_VALIDATION_DRAWS: usize = 100;
 
 /// The parameters that carry a commissioned actuator `measured` (its magnetic circuit in
 /// the two-inductance form) on a board whose file is `board`: the resistance, the spring
-/// and its preload, the mass and the friction, and the magnetic circuit in the board's own form (its kind is fixed by
-/// the firmware build).
+/// and its preload, the mass and the friction with their tolerances, and the magnetic
+/// circuit in the board's own form (its kind is fixed by the firmware build).
 /// In the geometry form without spread, `1/L` is linear in the gap as in the measured
 /// one: the pole's sides are scaled for the measured airgap reluctance (the fringing
 /// coefficient kept) and the iron's reluctance set to the measured one.
@@ -684,6 +684,8 @@ pub fn commissioned_params(
             "mechanics.friction_n_s_per_m",
             measured.mechanics.friction_n_s_per_m,
         ),
+        ("tolerance.mass", measured.tolerance.mass),
+        ("tolerance.friction", measured.tolerance.friction),
     ];
     match board.magnetics {
         Magnetics::Inductance { .. } => {
@@ -817,10 +819,14 @@ pub fn actuator_file(
             |arm| {
                 format!(
                     "#   mechanics.mass_kg = {}, mechanics.friction_n_s_per_m = {} (the {} moves \
-                     between the holds)\n",
+                     between the holds),\n\
+                     #   tolerance.mass = {}, tolerance.friction = {} (what the measurement \
+                     leaves)\n",
                     sig(arm.mass_kg, 4),
                     sig(arm.friction_n_s_per_m, 3),
-                    arm.moves
+                    arm.moves,
+                    sig(f64::from(a.tolerance.mass), 3),
+                    sig(f64::from(a.tolerance.friction), 3)
                 )
             },
         );
@@ -1318,13 +1324,33 @@ pub fn capture<P: std::io::Read + Write>(
 /// What the virtual board's standard input takes.
 const INJECTIONS: &str = "supply V, position-open, position-ok, analog-v V, analog-ma MA, \
                           cut-save STEP, resistance OHM, surfaces SCALE, \
-                          spring N_PER_M PRELOAD_N";
+                          spring N_PER_M PRELOAD_N, \
+                          mechanics MASS_KG N_PER_M PRELOAD_N FRICTION_N_S_PER_M";
 
 /// A line of the virtual board's standard input, as an injection on a board whose
 /// actuator's file is `file` (a spring keeps its mass and friction).
 fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
     let mut words = line.split_whitespace();
     let verb = words.next()?;
+    if verb == "mechanics" {
+        let v: Vec<f64> = words.filter_map(|w| w.parse().ok()).collect();
+        return Some(match v[..] {
+            [mass_kg, spring_n_per_m, preload_n, friction_n_s_per_m]
+                if mass_kg > 0.0 && spring_n_per_m >= 0.0 && friction_n_s_per_m >= 0.0 =>
+            {
+                Ok(Injection::Mechanics {
+                    mass_kg,
+                    spring_n_per_m,
+                    preload_n,
+                    friction_n_s_per_m,
+                })
+            }
+            _ => Err(format!(
+                "`{line}`: mechanics takes four numbers, the mass above zero, the spring and \
+                 the friction not below ({INJECTIONS})"
+            )),
+        });
+    }
     let arg = words.next().map(str::parse::<f64>);
     let second = words.next().map(str::parse::<f64>);
     if let ("spring", Some(Ok(k)), Some(Ok(f0))) = (verb, &arg, &second) {
@@ -1410,4 +1436,36 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     })?;
     drop(slave);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_virtual_boards_mechanics_injection_takes_four_numbers_and_refuses_a_massless_one() {
+        let got = injection("mechanics 0.085 150 0.06 6", &Actuator::PRODUCT);
+        assert_eq!(
+            got,
+            Some(Ok(Injection::Mechanics {
+                mass_kg: 0.085,
+                spring_n_per_m: 150.0,
+                preload_n: 0.06,
+                friction_n_s_per_m: 6.0,
+            }))
+        );
+        for bad in ["mechanics 0.085 150 0.06", "mechanics 0 150 0.06 6"] {
+            let Some(Err(e)) = injection(bad, &Actuator::PRODUCT) else {
+                panic!("`{bad}` accepted");
+            };
+            assert!(e.contains("mechanics takes four numbers"), "{e}");
+        }
+        // `spring` keeps the file's mass and friction.
+        let Some(Ok(Injection::Mechanics { mass_kg, .. })) =
+            injection("spring 150 0.06", &Actuator::PRODUCT)
+        else {
+            panic!("spring refused");
+        };
+        assert_eq!(mass_kg, f64::from(Actuator::PRODUCT.mechanics.mass_kg));
+    }
 }

@@ -60,7 +60,8 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             };
             let mechanics = commissioning::mechanics(&a, &r, &plant, Some(&draw))?;
             // Relative rate error; preload error as a share of the spring's force over
-            // the stroke; relative mass and friction errors (NaN: no move fitted).
+            // the stroke; relative mass and friction errors, and the friction's error
+            // as a share of the critical damping (NaN: no move fitted).
             let mechanics_errors = mechanics.map(|m| {
                 let (mass, friction) = m.armature.map_or((f64::NAN, f64::NAN), |arm| {
                     (
@@ -68,12 +69,14 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                         arm.friction_n_s_per_m / plant.friction_n_s_per_m - 1.0,
                     )
                 });
+                let critical = 2.0 * (plant.spring_n_per_m * plant.mass_kg).sqrt();
                 [
                     m.spring.n_per_m / plant.spring_n_per_m - 1.0,
                     (m.spring.preload_n - plant.preload_n)
                         / (plant.spring_n_per_m * plant.stroke_m),
                     mass,
                     friction,
+                    friction * plant.friction_n_s_per_m / critical,
                 ]
             });
             let closed = if args.tune {
@@ -140,7 +143,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         row(&mut t, what, v, Some(*target));
     }
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut mechanics: Vec<[f64; 4]> = Vec::new();
+    let mut mechanics: Vec<[f64; 5]> = Vec::new();
     for s in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
         match s {
             Ok(e) => mechanics.push(*e),
@@ -150,8 +153,12 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     for (i, (what, target)) in [
         ("spring rate error [%]", Some(5.0)),
         ("preload error [% of K x stroke]", None),
-        ("mass error [%]", Some(10.0)),
+        ("mass error [%]", Some(100.0 * commissioning::MASS_CLASS)),
         ("friction error [%]", None),
+        (
+            "friction error [% of the critical damping]",
+            Some(100.0 * commissioning::FRICTION_CLASS_DAMPING),
+        ),
     ]
     .into_iter()
     .enumerate()

@@ -99,7 +99,7 @@ impl Draw {
 pub const MASS_CLASS: f64 = 0.08;
 
 /// How far the friction [`fit_armature`] reads may be off, as a share of the critical
-/// damping `2 sqrt(K m)`: twice the largest error over the family's drawn plants (the
+/// damping `2 sqrt(K m)`: above the largest error over the family's drawn plants (the
 /// `hil-sim commission` table's row of it, whose target this is). Lightly damped
 /// actuators read their friction tens of per cent off, but the error is this small
 /// against the damping that matters to the loop.

@@ -19,8 +19,7 @@
 //! friction, the tolerance their measurement leaves ([`MASS_CLASS`],
 //! [`FRICTION_CLASS_DAMPING`]) rather than the datasheet's: `tune` then validates its
 //! gains on plants around what was measured, as far off as the measurement may be, and
-//! the controller's robust model is built on the same. A light, lightly damped actuator
-//! that the datasheet's +-50 % on the friction left untunable is tuned (the test
+//! the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).
 
 use ema::actuator::Actuator;
@@ -121,8 +120,8 @@ pub const IRON_SHARE: f32 = 0.01;
 /// friction is an estimate, +-50 % by default; the moves read it to a few hundredths of
 /// the critical damping). The other tolerances stay the file's: the resistance moves with
 /// the coil's temperature, the surfaces are the paper's uncertainty (the two inductances
-/// fix the circuit at the stops only), and a spring read from holds that limit-cycle is
-/// corrected by the moves ([`Mechanics::fit`]) to a few per cent, as the file's default.
+/// fix the circuit at the stops only), and the spring, read within 5 % on most drawn
+/// plants but not all (the `hil-sim commission` table), keeps the file's.
 ///
 /// The file's form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the iron's
 /// `rho_0` positive. A real circuit's fringing bends the line (the surface grows with the

@@ -820,8 +820,8 @@ pub fn actuator_file(
                 format!(
                     "#   mechanics.mass_kg = {}, mechanics.friction_n_s_per_m = {} (the {} moves \
                      between the holds),\n\
-                     #   tolerance.mass = {}, tolerance.friction = {} (what the measurement \
-                     leaves)\n",
+                     #   tolerance.mass = {}, tolerance.friction = {} (the measurement's, \
+                     where below the file's)\n",
                     sig(arm.mass_kg, 4),
                     sig(arm.friction_n_s_per_m, 3),
                     arm.moves,
@@ -1333,7 +1333,7 @@ fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
     let mut words = line.split_whitespace();
     let verb = words.next()?;
     if verb == "mechanics" {
-        let v: Vec<f64> = words.filter_map(|w| w.parse().ok()).collect();
+        let v: Vec<f64> = words.map_while(|w| w.parse().ok()).collect();
         return Some(match v[..] {
             [mass_kg, spring_n_per_m, preload_n, friction_n_s_per_m]
                 if mass_kg > 0.0 && spring_n_per_m >= 0.0 && friction_n_s_per_m >= 0.0 =>
@@ -1454,7 +1454,11 @@ mod tests {
                 friction_n_s_per_m: 6.0,
             }))
         );
-        for bad in ["mechanics 0.085 150 0.06", "mechanics 0 150 0.06 6"] {
+        for bad in [
+            "mechanics 0.085 150 0.06",
+            "mechanics 0 150 0.06 6",
+            "mechanics 0.085 x 150 0.06 6",
+        ] {
             let Some(Err(e)) = injection(bad, &Actuator::PRODUCT) else {
                 panic!("`{bad}` accepted");
             };

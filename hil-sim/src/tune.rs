@@ -72,6 +72,35 @@ impl Candidate {
             disturbance_follows_force: self.follows_force,
         }
     }
+
+    /// The refinement's points around this one, itself left out: `alpha` and the observer
+    /// by [`REFINE_FACTOR`] either way, the margin halfway to its neighbours in
+    /// `margins` (sorted), the disturbance model kept.
+    fn neighbours(&self, margins: &[f64]) -> Vec<Candidate> {
+        let below = margins.iter().copied().rfind(|m| *m < self.margin);
+        let above = margins.iter().copied().find(|m| *m > self.margin);
+        let mut ms = vec![self.margin];
+        ms.extend(below.map(|m| round3(0.5 * (m + self.margin))));
+        ms.extend(above.map(|m| round3(0.5 * (m + self.margin))));
+        let steps = [1.0 / REFINE_FACTOR, 1.0, REFINE_FACTOR];
+        let mut out = Vec::new();
+        for a in steps {
+            for o in steps {
+                for &margin in &ms {
+                    let c = Candidate {
+                        alpha: round3(self.alpha * a),
+                        observer_rad_s: round3(self.observer_rad_s * o),
+                        margin,
+                        follows_force: self.follows_force,
+                    };
+                    if c != *self {
+                        out.push(c);
+                    }
+                }
+            }
+        }
+        out
+    }
 }
 
 /// The search space.
@@ -129,11 +158,11 @@ impl Space {
     }
 
     /// Every candidate of the space at an actuator whose own rate is `rate_hz`, in the
-    /// order `alpha`, observer, margin, disturbance model (observers at or above a quarter of the Nyquist
-    /// rate, `pi / (4 Ts)`, are left out).
+    /// order `alpha`, observer, margin, disturbance model (observers at or above
+    /// [`observer_limit_rad_s`] are left out).
     #[must_use]
     pub fn candidates(&self, rate_hz: f64) -> Vec<Candidate> {
-        let nyquist_quarter = 0.25 * std::f64::consts::PI * rate_hz;
+        let nyquist_quarter = observer_limit_rad_s(rate_hz);
         let mut out = Vec::new();
         for &alpha in &self.alpha {
             for &k in &self.observer_per_alpha {
@@ -155,6 +184,13 @@ impl Space {
         }
         out
     }
+}
+
+/// The observer bandwidths `tune` tries stay below a quarter of the Nyquist rate of the
+/// actuator's own rate `rate_hz`, `pi / (4 Ts)` \[rad/s\].
+#[must_use]
+pub fn observer_limit_rad_s(rate_hz: f64) -> f64 {
+    0.25 * std::f64::consts::PI * rate_hz
 }
 
 /// Three significant digits: tuned files carry round numbers.
@@ -465,7 +501,7 @@ pub fn tune(
         let mut best: Vec<&Evaluation> =
             evaluations.iter().filter(|e| e.score.is_finite()).collect();
         best.sort_by(|a, b| a.score.total_cmp(&b.score));
-        let nyquist_quarter = 0.25 * std::f64::consts::PI * f64::from(act.board.rate_hz);
+        let nyquist_quarter = observer_limit_rad_s(f64::from(act.board.rate_hz));
         let mut refined: Vec<Candidate> = Vec::new();
         for e in best.iter().take(REFINE_SEEDS) {
             for c in e.candidate.neighbours(&space.margin) {
@@ -514,37 +550,6 @@ pub const REFINE_SEEDS: usize = 3;
 /// The steps of the refinement around a grid point: `alpha` and the observer a factor
 /// `2^(1/4)` either way (half the grid's step), the margin halfway to its neighbours.
 const REFINE_FACTOR: f64 = 1.189_207_115_002_721;
-
-impl Candidate {
-    /// The refinement's points around this one, itself left out: `alpha` and the observer
-    /// by [`REFINE_FACTOR`] either way, the margin halfway to its neighbours in
-    /// `margins` (sorted), the disturbance model kept.
-    fn neighbours(&self, margins: &[f64]) -> Vec<Candidate> {
-        let below = margins.iter().copied().rfind(|m| *m < self.margin);
-        let above = margins.iter().copied().find(|m| *m > self.margin);
-        let mut ms = vec![self.margin];
-        ms.extend(below.map(|m| round3(0.5 * (m + self.margin))));
-        ms.extend(above.map(|m| round3(0.5 * (m + self.margin))));
-        let steps = [1.0 / REFINE_FACTOR, 1.0, REFINE_FACTOR];
-        let mut out = Vec::new();
-        for a in steps {
-            for o in steps {
-                for &margin in &ms {
-                    let c = Candidate {
-                        alpha: round3(self.alpha * a),
-                        observer_rad_s: round3(self.observer_rad_s * o),
-                        margin,
-                        follows_force: self.follows_force,
-                    };
-                    if c != *self {
-                        out.push(c);
-                    }
-                }
-            }
-        }
-        out
-    }
-}
 
 /// A candidate chosen, with its validation at every rate.
 type Chosen = (Evaluation, Vec<(Worst, Targets)>);

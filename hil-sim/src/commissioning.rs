@@ -36,17 +36,19 @@ use crate::targets::{Targets, Worst};
 use crate::Error;
 
 /// An actuator drawn off its file, as a user's is: the airgap surfaces, the coil's
-/// resistance, the spring rate, the mass each within +-30 %, an unknown preload up to a
-/// fifth of the spring's force over the stroke, the friction within +-50 %, and a
-/// position sensor whose offset and gain are each within +-3 % (of the stroke, of the
-/// span), and the converter's noise its own realisation: the inductances come from a few
-/// noisy current samples of a decay, so one noise sequence shared by every draw would
-/// give every draw the same error and hide its spread.
+/// resistance, the spring rate, the mass each within +-30 % (the file's preload with the
+/// spring's rate), an unknown preload on top of it up to a fifth of the spring's force
+/// over the stroke, the friction within +-50 %, and a position sensor whose offset and
+/// gain are each within +-3 % (of the stroke, of the span), and the converter's noise its
+/// own realisation: the inductances come from a few noisy current samples of a decay, so
+/// one noise sequence shared by every draw would give every draw the same error and hide
+/// its spread.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Draw {
     /// Surfaces, resistance, spring rate, mass, friction: factors on the file's \[-\].
     pub factors: [f64; 5],
-    /// Preload as a share of the spring's force over the stroke \[-\].
+    /// The unknown preload, on top of the file's, as a share of the spring's force over
+    /// the stroke \[-\].
     pub preload_share: f64,
     /// The position sensor's gain error \[-\].
     pub gain_error: f64,
@@ -87,7 +89,7 @@ impl Draw {
         p.spring_n_per_m *= k;
         p.mass_kg *= m;
         p.friction_n_s_per_m *= friction;
-        p.preload_n = self.preload_share * p.spring_n_per_m * p.stroke_m;
+        p.preload_n = p.preload_n * k + self.preload_share * p.spring_n_per_m * p.stroke_m;
         p
     }
 }
@@ -214,9 +216,8 @@ impl Mechanics {
     /// from their moves ([`fit_armature`]). When a hold is not at rest ([`REST_SHARE`]),
     /// the spring's rate is corrected by what the moves read it missed
     /// ([`Armature::stiffness_n_per_m`]), its line turned about the holds' mean: a loop
-    /// that limit-cycles about its holds (a drawn 1 kg plunger) reads the rate from their
-    /// mean positions and pulls up to a third off, where the moves' dynamics read it
-    /// within a few per cent. At rest the holds read it better than the moves.
+    /// that limit-cycles about its holds reads the rate from their mean positions and
+    /// pulls up to a third off, where the moves' dynamics read it within a few per cent. At rest the holds read it better than the moves.
     #[must_use]
     pub fn fit(report: &Report, stroke_m: f64, holds: &Holds) -> Self {
         let mut spring = fit_spring(report, stroke_m, &holds.windows);
@@ -304,8 +305,8 @@ pub fn decimations(settings: &ema::control::Settings, stroke_m: f64, rate_hz: f6
 /// windows, [`fit_armature`] on the moves.
 ///
 /// The loop holds with the default tuning, for the file's mass and spring: on a plant far
-/// from them it may limit-cycle about a hold (a drawn 1 kg plunger), and the holds then
-/// read the spring several per cent off, or a monitor ends them.
+/// from them it may limit-cycle about a hold, and the holds then read the spring several
+/// per cent off, or a monitor ends them.
 ///
 /// `Ok(Err(name))`: the loop latched the fault `name` during the holds, nothing measured.
 ///

@@ -36,19 +36,19 @@ use crate::targets::{Targets, Worst};
 use crate::Error;
 
 /// An actuator drawn off its file, as a user's is: the airgap surfaces, the coil's
-/// resistance, the spring rate, the mass each within +-30 % (the file's preload with the
-/// spring's rate), an unknown preload on top of it up to a fifth of the spring's force
-/// over the stroke, the friction within +-50 %, and a position sensor whose offset and
-/// gain are each within +-3 % (of the stroke, of the span), and the converter's noise its
-/// own realisation: the inductances come from a few noisy current samples of a decay, so
-/// one noise sequence shared by every draw would give every draw the same error and hide
-/// its spread.
+/// resistance, the spring rate, the mass each within +-30 % (a preload the file gives
+/// with the spring's rate; where it gives none, an unknown one up to a fifth of the
+/// spring's force over the stroke), the friction within +-50 %, and a position sensor
+/// whose offset and gain are each within +-3 % (of the stroke, of the span), and the
+/// converter's noise its own realisation: the inductances come from a few noisy current
+/// samples of a decay, so one noise sequence shared by every draw would give every draw
+/// the same error and hide its spread.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Draw {
     /// Surfaces, resistance, spring rate, mass, friction: factors on the file's \[-\].
     pub factors: [f64; 5],
-    /// The unknown preload, on top of the file's, as a share of the spring's force over
-    /// the stroke \[-\].
+    /// The unknown preload of a file that gives none, as a share of the spring's force
+    /// over the stroke \[-\].
     pub preload_share: f64,
     /// The position sensor's gain error \[-\].
     pub gain_error: f64,
@@ -89,7 +89,11 @@ impl Draw {
         p.spring_n_per_m *= k;
         p.mass_kg *= m;
         p.friction_n_s_per_m *= friction;
-        p.preload_n = p.preload_n * k + self.preload_share * p.spring_n_per_m * p.stroke_m;
+        p.preload_n = if p.preload_n > 0.0 {
+            p.preload_n * k
+        } else {
+            self.preload_share * p.spring_n_per_m * p.stroke_m
+        };
         p
     }
 }

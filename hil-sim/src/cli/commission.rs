@@ -105,7 +105,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     }
     writeln!(
         out,
-        "{name}: {} plants drawn wider than the file (seed {}): surfaces, R, K, m +-30 %, an unknown preload on top of the file's, friction +-50 %, sensor offset and gain +-3 %",
+        "{name}: {} plants drawn wider than the file (seed {}): surfaces, R, K, m +-30 %, the file's preload +-30 % (or an unknown one), friction +-50 %, sensor offset and gain +-3 %",
         args.n, args.seed
     )?;
     let mut t = Table::new([

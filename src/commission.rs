@@ -182,7 +182,8 @@ pub struct Plan {
     pub release_ticks: u32,
     /// Ticks of the approach's voltage ramp.
     pub ramp_ticks: u32,
-    /// Ticks a hold may spend restarting its window.
+    /// Ticks a hold may spend restarting its window (each restart with the wait for the
+    /// coil to settle before it).
     pub patience_ticks: u32,
     /// Ticks at each level of the inductance probe's cycle ([`SETTLE_TIME_CONSTANTS`] of
     /// the slowest coil at the open stop).
@@ -577,6 +578,8 @@ struct Window {
     x: Moments,
     x_min: f32,
     x_max: f32,
+    /// `x_min` and `x_max` hold a reading.
+    spanned: bool,
     /// The position's sum of deviations and the count at the window's half.
     x_half: f32,
     n_half: u32,
@@ -623,18 +626,26 @@ impl Window {
         x: Moments::EMPTY,
         x_min: 0.0,
         x_max: 0.0,
+        spanned: false,
         x_half: 0.0,
         n_half: 0,
     };
 
+    /// Widens the span of positions by `x_m` (a reading of the window, or one just
+    /// before it).
+    fn span(&mut self, x_m: f32) {
+        if !self.spanned {
+            self.spanned = true;
+            self.x_min = x_m;
+            self.x_max = x_m;
+        }
+        self.x_min = math::min(self.x_min, x_m);
+        self.x_max = math::max(self.x_max, x_m);
+    }
+
     fn add(&mut self, u_v: f32, m: &Measurement) {
         let first = self.n == 0;
-        if first {
-            self.x_min = m.x_m;
-            self.x_max = m.x_m;
-        }
-        self.x_min = math::min(self.x_min, m.x_m);
-        self.x_max = math::max(self.x_max, m.x_m);
+        self.span(m.x_m);
         self.n = self.n.saturating_add(1);
         self.u += u_v;
         self.vbus += m.vbus_v;
@@ -766,7 +777,7 @@ pub struct Identification {
     phase: Phase,
     /// Ticks into the phase.
     tick: u32,
-    /// Ticks of windows restarted in this phase.
+    /// Ticks of windows restarted in this phase, with the waits that preceded them.
     restarts: u32,
     window: Window,
     /// The windows the result is made from (the resistance's first step in the first).
@@ -891,6 +902,12 @@ impl Identification {
             if self.phase == Phase::ProbeCycle {
                 self.cycle.add(applied_v, m);
             }
+            if self.tick.saturating_add(self.plan.settle_ticks) > wait {
+                // The coil's current settles over the wait's last part: an armature that
+                // moves then (one that snaps onto a stop at the end of a slow creep) is
+                // a window whose current still recovers from its back-EMF.
+                self.window.span(m.x_m);
+            }
             // A step's response, over the wait (as long as the slowest coil needs).
             let p = &self.plan;
             self.decay.add(m.i_a, stepped, p.skip_readings);
@@ -929,11 +946,21 @@ impl Identification {
                 let patient = self.restarts.saturating_add(self.plan.average_ticks)
                     <= self.plan.patience_ticks;
                 if moved && rest != Rest::Any && patient {
-                    // The armature moved during the window: its motion induced a
-                    // voltage, and its mean is no stop's. Average again from here.
-                    self.restarts = self.restarts.saturating_add(self.plan.average_ticks);
+                    // The armature moved during the window or the wait's last part:
+                    // its motion induced a voltage, and its mean is no stop's. Average again once the coil's
+                    // current has settled from the motion (its inductance changed, its
+                    // back-EMF kicked the current); the step `Near` fits in its wait is
+                    // not repeated.
+                    let settle = if self.phase == Phase::Near {
+                        0
+                    } else {
+                        self.plan.settle_ticks
+                    };
+                    self.restarts = self
+                        .restarts
+                        .saturating_add(self.plan.average_ticks.saturating_add(settle));
                     self.window = Window::EMPTY;
-                    self.tick = wait;
+                    self.tick = wait.saturating_sub(settle);
                 } else if moved && rest == Rest::Required {
                     return Step::Done(Err(Abort::NotAtRest));
                 } else if let Some(done) = self.finish() {

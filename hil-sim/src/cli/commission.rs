@@ -185,11 +185,19 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         let mut misses: BTreeMap<&str, usize> = BTreeMap::new();
         let mut tuned = 0;
         let mut passed = 0;
-        for c in runs.iter().filter_map(|(_, _, c)| c.as_ref()) {
+        // The seed of each draw that missed: `--seed S --n 1` runs it again.
+        let mut seeds = Vec::new();
+        for (k, c) in runs
+            .iter()
+            .enumerate()
+            .filter_map(|(k, (_, _, c))| Some((k, c.as_ref()?)))
+        {
             tuned += 1;
             let m = c.misses();
             if m.is_empty() {
                 passed += 1;
+            } else {
+                seeds.push(args.seed.wrapping_add(k as u64).to_string());
             }
             for what in m {
                 *misses.entry(what).or_default() += 1;
@@ -202,7 +210,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             if misses.is_empty() {
                 "none".to_owned()
             } else {
-                misses.join(", ")
+                format!("{} (seeds {})", misses.join(", "), seeds.join(", "))
             }
         )?;
     }

@@ -222,7 +222,8 @@ impl Mechanics {
     /// the spring's rate is corrected by what the moves read it missed
     /// ([`Armature::stiffness_n_per_m`]), its line turned about the holds' mean: a loop
     /// that limit-cycles about its holds reads the rate from their mean positions and
-    /// pulls up to a third off, where the moves' dynamics read it within a few per cent. At rest the holds read it better than the moves.
+    /// pulls up to a third off, where the moves' dynamics read it within a few per cent.
+    /// At rest the holds read it better than the moves.
     #[must_use]
     pub fn fit(report: &Report, stroke_m: f64, holds: &Holds) -> Self {
         let mut spring = fit_spring(report, stroke_m, &holds.windows);

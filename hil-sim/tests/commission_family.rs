@@ -76,7 +76,7 @@ const SNAP_SEEDS: [u64; 3] = [62, 78, 82];
 /// Valves drawn with their file's preload whose armature snaps onto the closed stop at
 /// the end of the second resistance step's wait: the coil's current, kicked by the
 /// back-EMF, recovers over the window that follows, which then reads the resistance up
-/// to 10 % high and sets the later holds' voltages too high. The motion in the wait's
+/// to 15 % high and sets the later holds' voltages too high. The motion in the wait's
 /// last part restarts the window after the coil has settled: each is commissioned, its
 /// resistance within 2 %, its current never above the approach's share of the rating
 /// (read too high, the hold at the closed stop reached the rating and ended the routine).

@@ -947,10 +947,10 @@ impl Identification {
                     <= self.plan.patience_ticks;
                 if moved && rest != Rest::Any && patient {
                     // The armature moved during the window or the wait's last part:
-                    // its motion induced a voltage, and its mean is no stop's. Average again once the coil's
-                    // current has settled from the motion (its inductance changed, its
-                    // back-EMF kicked the current); the step `Near` fits in its wait is
-                    // not repeated.
+                    // its motion induced a voltage, and its mean is no stop's. Average
+                    // again once the coil's current has settled from the motion (its
+                    // inductance changed, its back-EMF kicked the current); the step
+                    // `Near` fits in its wait is not repeated.
                     let settle = if self.phase == Phase::Near {
                         0
                     } else {

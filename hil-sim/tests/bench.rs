@@ -79,6 +79,9 @@ fn the_host_tool_drives_the_virtual_board_through_a_session() {
     .unwrap();
     assert_eq!(c.capture.samples.len(), 256);
     assert_eq!(c.board.segments, c.simulator.segments);
+    // The board measures no supply current: no energy in what it prints.
+    let printed = String::from_utf8(sink).unwrap();
+    assert!(printed.contains("settling 2 % [s]") && !printed.contains("energy"));
     let seg = c.board.first().unwrap();
     assert!(seg.settling_time_s.unwrap() < 0.2, "{seg:?}");
     assert!(seg.overshoot_pct < 0.5, "{seg:?}");

@@ -1246,7 +1246,9 @@ pub fn capture<P: std::io::Read + Write>(
         ]);
     }
     t.write_csv(&csv)?;
-    let metrics = report::metrics_table(&[("board", &board), ("simulator", &simulator)]);
+    // The board does not measure the supply's current: the energy is not reported.
+    let metrics = report::metrics_table(&[("board", &board), ("simulator", &simulator)])
+        .without("energy [J]");
     let metrics_csv = a.out.join("metrics.csv");
     metrics.write_csv(&metrics_csv)?;
     let pts = |f: &dyn Fn(&ema::protocol::Sample) -> f64, v: &[ema::protocol::Sample]| {

@@ -46,6 +46,21 @@ impl Table {
             .map(Vec::as_slice)
     }
 
+    /// The same table without the column named `column` (a quantity the source of its
+    /// rows does not measure).
+    #[must_use]
+    pub fn without(mut self, column: &str) -> Self {
+        if let Some(c) = self.header.iter().position(|h| h == column) {
+            self.header.remove(c);
+            for r in &mut self.rows {
+                if c < r.len() {
+                    r.remove(c);
+                }
+            }
+        }
+        self
+    }
+
     /// The same table with rows and columns swapped: the header becomes the first column.
     /// Handy for printing a wide one-row-per-run table as one row per quantity.
     #[must_use]
@@ -212,5 +227,9 @@ mod tests {
         let tr = t.transposed();
         assert_eq!(tr.header, ["name", "peak", "steady"]);
         assert_eq!(tr.rows, [["value [A]", "22.4", "6.04"]]);
+        let w = t.clone().without("value [A]");
+        assert_eq!(w.header, ["name"]);
+        assert_eq!(w.rows, [["peak"], ["steady"]]);
+        assert_eq!(t.clone().without("energy [J]"), t);
     }
 }

@@ -466,6 +466,9 @@ pub struct Outcome {
     pub ends_m: [f64; 2],
     /// One position code \[m\].
     pub code_m: f64,
+    /// Largest relative error over the stroke of the inductance the commissioned file
+    /// models ([`curve_error`]) \[-\]; NaN for a commissioning that stopped.
+    pub curve_error: f64,
 }
 
 impl Outcome {
@@ -621,6 +624,10 @@ pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
         stepper.advance(lines.switches(), sc.bridge.mode);
     }
     let ends_m = [0.0, plant.stroke_m].map(|x| x * (1.0 + gain) + offset_code * code_m);
+    let curve_error = match &report {
+        Ok(r) => curve_error(a, r, &plant)?,
+        Err(_) => f64::NAN,
+    };
     Ok(Outcome {
         report,
         took_s: ticks as f64 / rate,
@@ -629,7 +636,35 @@ pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
         inductance_h: [0.0, plant.stroke_m].map(|x| plant.inductance_h(plant.gap_m(x))),
         ends_m,
         code_m,
+        curve_error,
     })
+}
+
+/// Positions, evenly spread over the stroke with both stops, at which [`curve_error`]
+/// compares the inductances.
+pub const CURVE_POSITIONS: usize = 17;
+
+/// Largest relative error, over [`CURVE_POSITIONS`] positions, of the inductance that
+/// the actuator file written from `report` models (file `a` with [`measured`]'s
+/// magnetic circuit: the two stops' inductances, `1/L` linear in the gap between them)
+/// against `plant`'s \[-\]. Between the stops it is what the two-point line misses of
+/// the plant's fringing; NaN propagates.
+///
+/// # Errors
+/// Measured inductances no actuator can have.
+#[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
+pub fn curve_error(a: &Actuator, report: &Report, plant: &Params) -> Result<f64, Error> {
+    let model = measured(a, report, None)?
+        .0
+        .plant()
+        .map_err(Error::Actuator)?;
+    Ok((0..CURVE_POSITIONS)
+        .map(|k| {
+            let x = plant.stroke_m * k as f64 / (CURVE_POSITIONS - 1) as f64;
+            let got = model.magnetics.inductance_h(model.gap_m(x as f32));
+            (f64::from(got) / plant.inductance_h(plant.gap_m(x)) - 1.0).abs()
+        })
+        .fold(0.0, |w, e| if e > w || e.is_nan() { e } else { w }))
 }
 
 /// The armature's mass and friction measured by [`fit_armature`].

@@ -141,6 +141,22 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         let scale = if i < 3 { 100.0 } else { 1.0 };
         let v = errors.iter().map(|e| scale * e[i].abs()).collect();
         row(&mut t, what, v, Some(*target));
+        if i == 2 {
+            let curve = outcomes
+                .iter()
+                .filter(|o| o.report.is_ok())
+                .map(|o| 100.0 * o.curve_error)
+                .collect();
+            row(
+                &mut t,
+                &format!(
+                    "inductance error over the stroke [%] (largest of {} positions)",
+                    commissioning::CURVE_POSITIONS
+                ),
+                curve,
+                Some(5.0),
+            );
+        }
     }
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut mechanics: Vec<[f64; 5]> = Vec::new();

@@ -120,7 +120,11 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     // over the target (none: a quantity without one).
     let row = |t: &mut Table, what: &str, mut v: Vec<f64>, target: Option<f64>| {
         let over = target.map_or(String::new(), |target| {
-            v.iter().filter(|x| **x > target).count().to_string()
+            // NaN (a value that could not be read) counts as over.
+            v.iter()
+                .filter(|x| x.is_nan() || **x > target)
+                .count()
+                .to_string()
         });
         v.sort_by(f64::total_cmp);
         let at = |q: f64| {

@@ -472,10 +472,11 @@ pub struct Outcome {
 }
 
 impl Outcome {
-    /// Relative errors of the resistance and the two inductances, and the end stops'
-    /// errors in position codes; `None` for a commissioning that stopped.
+    /// Relative errors of the resistance, the two inductances and the inductance curve
+    /// over the stroke ([`Outcome::curve_error`], unsigned), and the end stops' errors in
+    /// position codes; `None` for a commissioning that stopped.
     #[must_use]
-    pub fn errors(&self) -> Option<[f64; 5]> {
+    pub fn errors(&self) -> Option<[f64; 6]> {
         let r = self.report.ok()?;
         let rel = |got: f32, want: f64| f64::from(got) / want - 1.0;
         let codes = |got: f32, want: f64| (f64::from(got) - want).abs() / self.code_m;
@@ -483,6 +484,7 @@ impl Outcome {
             rel(r.resistance.ohm, self.resistance_ohm),
             rel(r.inductance.open_h, self.inductance_h[0]),
             rel(r.inductance.closed_h, self.inductance_h[1]),
+            self.curve_error,
             codes(r.ends.open_m, self.ends_m[0]),
             codes(r.ends.closed_m, self.ends_m[1]),
         ])

@@ -14,7 +14,7 @@ fn every_member_is_commissioned_within_its_targets() {
     for e in &hil_sim::actuator::FAMILY {
         let (name, a) = hil_sim::actuator::load(e.name).unwrap();
         let o = hil_sim::commissioning::run(&a, None).unwrap();
-        let Some([r, l_open, l_closed, open, closed]) = o.errors() else {
+        let Some([r, l_open, l_closed, curve, open, closed]) = o.errors() else {
             panic!("{name}: commissioning stopped: {:?}", o.report)
         };
         let share = o.peak_a / f64::from(a.coil.rated_current_a);
@@ -23,13 +23,13 @@ fn every_member_is_commissioned_within_its_targets() {
             100.0 * r,
             100.0 * l_open,
             100.0 * l_closed,
-            100.0 * o.curve_error,
+            100.0 * curve,
             100.0 * share,
             o.took_s
         );
         assert!(r.abs() < 0.02, "{name}: {o:?}");
         assert!(
-            l_open.abs() < 0.05 && l_closed.abs() < 0.05 && o.curve_error < 0.05,
+            l_open.abs() < 0.05 && l_closed.abs() < 0.05 && curve < 0.05,
             "{name}: {o:?}"
         );
         assert!(open < 2.0 && closed < 2.0, "{name}: {o:?}");
@@ -56,15 +56,15 @@ fn small_probe_steps_give_the_inductance_within_five_percent_on_drawn_plants() {
         for _ in 0..16 {
             let draw = hil_sim::commissioning::Draw::new(&mut rng);
             let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
-            let Some([_, open, closed, _, _]) = o.errors() else {
+            let Some([_, open, closed, curve, _, _]) = o.errors() else {
                 panic!("{name}: commissioning stopped: {:?}; {draw:?}", o.report)
             };
             worst = [
                 worst[0].max(open.abs()),
                 worst[1].max(closed.abs()),
                 // NaN (a curve that could not be read) fails below.
-                if o.curve_error > worst[2] || o.curve_error.is_nan() {
-                    o.curve_error
+                if curve > worst[2] || curve.is_nan() {
+                    curve
                 } else {
                     worst[2]
                 },
@@ -168,7 +168,7 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
         noise_seed: hil_sim::hal::Adc::typical().seed,
     };
     let o = hil_sim::commissioning::run(&a, Some(&corner)).unwrap();
-    let Some([_, _, _, open, closed]) = o.errors() else {
+    let Some([_, _, _, _, open, closed]) = o.errors() else {
         panic!("commissioning stopped: {:?}", o.report)
     };
     assert!(open < 2.0 && closed < 2.0, "{o:?}");

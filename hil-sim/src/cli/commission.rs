@@ -34,10 +34,11 @@ pub struct Args {
 }
 
 /// The quantities judged, with their targets.
-const QUANTITIES: [(&str, f64); 5] = [
+const QUANTITIES: [(&str, f64); 6] = [
     ("resistance error [%]", 2.0),
     ("inductance error, open stop [%]", 5.0),
     ("inductance error, closed stop [%]", 5.0),
+    ("inductance error over the stroke [%]", 5.0),
     ("open stop reading error [codes]", 2.0),
     ("closed stop reading error [codes]", 2.0),
 ];
@@ -95,7 +96,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     let outcomes: Vec<_> = runs.iter().map(|(o, _, _)| *o).collect();
     let rated = f64::from(a.coil.rated_current_a);
     let mut endings: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut errors: Vec<[f64; 5]> = Vec::new();
+    let mut errors: Vec<[f64; 6]> = Vec::new();
     for o in &outcomes {
         match (o.report, o.errors()) {
             (Ok(_), Some(e)) => errors.push(e),
@@ -142,25 +143,9 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         ]);
     };
     for (i, (what, target)) in QUANTITIES.iter().enumerate() {
-        let scale = if i < 3 { 100.0 } else { 1.0 };
+        let scale = if i < 4 { 100.0 } else { 1.0 };
         let v = errors.iter().map(|e| scale * e[i].abs()).collect();
         row(&mut t, what, v, Some(*target));
-        if i == 2 {
-            let curve = outcomes
-                .iter()
-                .filter(|o| o.report.is_ok())
-                .map(|o| 100.0 * o.curve_error)
-                .collect();
-            row(
-                &mut t,
-                &format!(
-                    "inductance error over the stroke [%] (largest of {} positions)",
-                    commissioning::CURVE_POSITIONS
-                ),
-                curve,
-                Some(5.0),
-            );
-        }
     }
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut mechanics: Vec<[f64; 5]> = Vec::new();

@@ -264,6 +264,7 @@ pub fn scenario(name: &str, act: &Actuator) -> Result<Scenario, Error> {
         probes_s: Vec::new(),
         steady_window_s: STEADY_WINDOW_S,
         faults: Vec::new(),
+        inductance_probes: Vec::new(),
     })
 }
 

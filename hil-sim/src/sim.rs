@@ -190,6 +190,9 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
     let mut faults = scenario.faults.clone();
     faults.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
     let mut faults = faults.into_iter().peekable();
+    let mut probes = scenario.inductance_probes.clone();
+    probes.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+    let mut probes = probes.into_iter().peekable();
     let mut sensing = SensorFaults::default();
     let mut missed = 0_u32;
     let mut last = ema::control::Status::default();
@@ -217,6 +220,9 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
                 Injected::MissedDeadlines { ticks } => missed = missed.saturating_add(ticks),
                 other => sensing.inject(other, &now),
             }
+        }
+        while let Some(p) = probes.next_if(|p| p.at_s <= now.t_s + 1e-9) {
+            ctl.probe = p.start();
         }
         let status = if missed > 0 {
             // The interrupt does not run: the bridge keeps whatever it was set to, until

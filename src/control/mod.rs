@@ -183,6 +183,48 @@ pub struct State {
     pub u_prev_v: f32,
     /// Ticks since start (wrapping).
     pub ticks: u32,
+    /// The inductance probe, when one runs.
+    pub probe: Probe,
+}
+
+/// The inductance probe: a square wave of `+-amplitude_a` added to the law's desired
+/// current for `ticks_left` ticks, switching every `half_ticks`, starting up (the
+/// practical law follows it; the others do not use a desired current this way).
+///
+/// Where the loop holds the armature between the stops, the magnet's stiffness exceeds
+/// the spring's on most actuators and no open-loop step can leave it there: the loop
+/// keeps holding it, and the current loop steps the coil's current by `2 amplitude_a`
+/// every half period, well faster than the armature can follow (the mean pull is that
+/// of the hold). The flux the steps take, the voltage's integral less the resistive
+/// drop, over the current's change is the inductance at the hold's position
+/// (`hil_sim::commissioning`). A stopped probe adds nothing, bit for bit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
+pub struct Probe {
+    /// Half the step of the desired current \[A\].
+    pub amplitude_a: f32,
+    /// Ticks at each level (0: stopped).
+    pub half_ticks: u16,
+    /// Ticks the probe still runs.
+    pub ticks_left: u32,
+}
+
+impl Probe {
+    /// What the probe adds to the desired current at this tick \[A\], and one tick on.
+    fn next(&mut self) -> f32 {
+        let Some(left) = self.ticks_left.checked_sub(1) else {
+            return 0.0;
+        };
+        let Some(level) = left.checked_div(u32::from(self.half_ticks)) else {
+            return 0.0;
+        };
+        self.ticks_left = left;
+        if level & 1 == 1 {
+            self.amplitude_a
+        } else {
+            -self.amplitude_a
+        }
+    }
 }
 
 /// What one tick did.
@@ -263,6 +305,7 @@ impl Config {
             shaping: shaping::State::default(),
             u_prev_v: 0.0,
             ticks: 0,
+            probe: Probe::default(),
         }
     }
 
@@ -373,6 +416,7 @@ impl Config {
                 disturbance_mps2: status.estimate.d_mps2,
                 reference: status.reference,
                 u_prev_v: state.u_prev_v,
+                probe_a: state.probe.next(),
             },
         );
         if !(status.output.u_v.is_finite()
@@ -470,6 +514,21 @@ mod tests {
         let s = cfg.tick_measured(&mut st, &mut b, &meas(3e-3, 10.0), 3e-3);
         assert_eq!(s.output.i_d_a, 0.0);
         assert_eq!(s.drive.mode, Mode::Reverse);
+    }
+
+    #[test]
+    fn the_inductance_probe_steps_up_then_down_and_stops() {
+        let mut p = Probe {
+            amplitude_a: 0.25,
+            half_ticks: 3,
+            ticks_left: 12,
+        };
+        let seen: [f32; 14] = core::array::from_fn(|_| p.next());
+        let (u, d) = (0.25, -0.25);
+        assert_eq!(seen, [u, u, u, d, d, d, u, u, u, d, d, d, 0.0, 0.0]);
+        let mut stopped = Probe { half_ticks: 0, ..p };
+        stopped.ticks_left = 5;
+        assert_eq!(stopped.next(), 0.0);
     }
 
     #[test]

@@ -118,6 +118,7 @@ mod tests {
             disturbance_mps2: 0.0,
             reference: Reference::hold(3e-3),
             u_prev_v: 0.0,
+            probe_a: 0.0,
         }
     }
 

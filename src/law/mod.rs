@@ -53,6 +53,9 @@ pub struct Input {
     /// Average coil voltage the bridge applied over the previous period \[V\] (for the
     /// prediction across the measurement delay).
     pub u_prev_v: f32,
+    /// Added to the desired current by the inductance probe ([`crate::control::Probe`])
+    /// \[A\]; the practical law follows it, the others ignore it.
+    pub probe_a: f32,
 }
 
 /// What a law asks for at one tick.

@@ -338,6 +338,7 @@ mod tests {
             disturbance_mps2: 0.0,
             reference: Reference::hold(r_m),
             u_prev_v: 0.0,
+            probe_a: 0.0,
         }
     }
 

@@ -229,7 +229,7 @@ impl Law for Config {
         let f_d =
             d.mass_kg * a_d + d.spring_force_n(input.x_m) + d.friction_n_s_per_m * input.v_mps;
         let i_d = math::min(
-            math::sqrt(math::max(2.0 * f_d / mu, 0.0)),
+            math::sqrt(math::max(2.0 * f_d / mu, 0.0)) + input.probe_a,
             self.gains.current_max_a,
         );
 
@@ -289,6 +289,7 @@ mod tests {
             disturbance_mps2: 0.0,
             reference: r,
             u_prev_v: 0.0,
+            probe_a: 0.0,
         }
     }
 
@@ -401,6 +402,24 @@ mod tests {
             },
         );
         assert_eq!(out.u_v, 5.0);
+    }
+
+    #[test]
+    fn the_desired_current_follows_the_inductance_probe() {
+        let cfg = law(1);
+        let base = input(3e-3, 6.0, Reference::hold(3e-3));
+        let plain = cfg.step(&mut State::default(), &base);
+        let probed = |probe_a: f32| {
+            cfg.step(&mut State::default(), &Input { probe_a, ..base })
+                .i_d_a
+        };
+        assert!(plain.i_d_a > 1.0, "{}", plain.i_d_a);
+        assert!((probed(0.5) - plain.i_d_a - 0.5).abs() < 1e-6);
+        assert!((probed(-0.5) - plain.i_d_a + 0.5).abs() < 1e-6);
+        // Never above the law's current limit.
+        assert_eq!(probed(1e3), cfg.gains().current_max_a);
+        // A stopped probe adds nothing, bit for bit.
+        assert_eq!(probed(0.0).to_bits(), plain.i_d_a.to_bits());
     }
 
     #[test]

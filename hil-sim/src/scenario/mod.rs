@@ -72,6 +72,40 @@ pub struct Scenario {
     /// Faults injected during the run (none by default).
     #[serde(default)]
     pub faults: Vec<Injection>,
+    /// Inductance probes started during the run (none by default).
+    #[serde(default)]
+    pub inductance_probes: Vec<InductanceProbe>,
+}
+
+/// An inductance probe ([`ema::control::Probe`]) started during a run: `cycles` times up
+/// and down by `amplitude_a` about the law's desired current, `half_ticks` at each level.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InductanceProbe {
+    /// When it starts \[s\].
+    pub at_s: f64,
+    /// Half the step of the desired current \[A\].
+    pub amplitude_a: f64,
+    /// Ticks at each level.
+    pub half_ticks: u16,
+    /// Cycles (each up and down).
+    pub cycles: u32,
+}
+
+impl InductanceProbe {
+    /// The controller's probe, started.
+    #[must_use]
+    #[allow(clippy::cast_possible_truncation)]
+    pub fn start(&self) -> ema::control::Probe {
+        ema::control::Probe {
+            amplitude_a: self.amplitude_a as f32,
+            half_ticks: self.half_ticks,
+            ticks_left: self
+                .cycles
+                .saturating_mul(2)
+                .saturating_mul(u32::from(self.half_ticks)),
+        }
+    }
 }
 
 fn default_window() -> f64 {
@@ -104,6 +138,8 @@ struct File {
     steady_window_s: f64,
     #[serde(default)]
     faults: Vec<Injection>,
+    #[serde(default)]
+    inductance_probes: Vec<InductanceProbe>,
 }
 
 fn nominal_plant() -> TruePlant {
@@ -136,6 +172,7 @@ impl From<File> for Scenario {
             probes_s: f.probes_s,
             steady_window_s: f.steady_window_s,
             faults: f.faults,
+            inductance_probes: f.inductance_probes,
         }
     }
 }
@@ -187,6 +224,7 @@ impl Scenario {
             probes_s: vec![0.5],
             steady_window_s: default_window(),
             faults: Vec::new(),
+            inductance_probes: Vec::new(),
         }
     }
 
@@ -454,6 +492,29 @@ impl Scenario {
         }
         for f in &self.faults {
             f.validate()?;
+        }
+        for (k, p) in self.inductance_probes.iter().enumerate() {
+            if !(p.at_s.is_finite() && p.at_s >= 0.0 && p.at_s < self.duration_s) {
+                return Err(Error::param(
+                    format!("inductance_probes[{k}].at_s"),
+                    p.at_s,
+                    "must lie inside the run",
+                ));
+            }
+            if !(p.amplitude_a.is_finite() && p.amplitude_a >= 0.0) {
+                return Err(Error::param(
+                    format!("inductance_probes[{k}].amplitude_a"),
+                    p.amplitude_a,
+                    "must be finite and not negative",
+                ));
+            }
+            if p.half_ticks == 0 {
+                return Err(Error::param(
+                    format!("inductance_probes[{k}].half_ticks"),
+                    0.0,
+                    "must be positive",
+                ));
+            }
         }
         positive("steady_window_s", self.steady_window_s)
     }

@@ -15,6 +15,16 @@
 //! the spring from the holds ([`fit_spring`]) and, with it, the mass and the friction
 //! from the moves ([`fit_armature`]): the same fits on the bench and here.
 //!
+//! At the end of each hold, after its window, an inductance probe ([`ema::control::Probe`],
+//! [`hold_probe`]) steps the loop's desired current up and down about the hold's: the
+//! armature stays where the loop holds it (between the stops, where the magnet's
+//! stiffness exceeds the spring's and no open-loop step could leave it), and the drive
+//! and the current readings give the inductance there ([`probe_inductance`]): with the
+//! stops', six inductances along the stroke, which `hil-sim commission` judges against
+//! the plant's. The file written still carries the stops' two-inductance form, and the
+//! pull the spring and the mass are read with is that form's; the board's host tool
+//! does not run the probe yet.
+//!
 //! The actuator file a commissioning writes ([`measured`]) carries, for the mass and the
 //! friction, the tolerance their measurement leaves ([`MASS_CLASS`],
 //! [`FRICTION_CLASS_DAMPING`]) rather than the datasheet's: `tune` then validates its
@@ -214,6 +224,10 @@ pub struct Mechanics {
     pub spring: Spring,
     /// The mass and the friction ([`fit_armature`]).
     pub armature: Option<Armature>,
+    /// The inductance at each hold, from its probe ([`probe_inductance`]): corrected
+    /// position \[m\], inductance \[H\] and two standard errors of it \[H\]; none
+    /// where no probe ran or its spread exceeds [`HOLD_PROBE_MAX_SPREAD`].
+    pub inductances: [Option<(f64, f64, f64)>; crate::actuator::SEQUENCE.len()],
 }
 
 impl Mechanics {
@@ -244,7 +258,11 @@ impl Mechanics {
             spring.n_per_m += arm.stiffness_n_per_m;
             spring.preload_n = (f - spring.n_per_m * x).max(0.0);
         }
-        Self { spring, armature }
+        Self {
+            spring,
+            armature,
+            inductances: [None; crate::actuator::SEQUENCE.len()],
+        }
     }
 }
 
@@ -338,14 +356,28 @@ pub fn mechanics(
             d.position_error(plant.stroke_m, code_m);
         adc.seed = d.noise_seed;
     }
-    let run = crate::sim::run(&sc)?;
-    if let Some(f) = run.samples.iter().find_map(|s| s.fault) {
-        return Ok(Err(f.name()));
-    }
     let stroke_m = f64::from(m.mechanics.stroke_m);
     let rate = sc.rate_hz();
     let hold_ticks = (crate::actuator::segment_s(&sc.controller, stroke_m) * rate).round() as usize;
     let window_ticks = (HOLD_WINDOW_SHARE * hold_ticks as f64).round() as usize;
+    let run = crate::sim::run(&sc)?;
+    if let Some(f) = run.samples.iter().find_map(|s| s.fault) {
+        return Ok(Err(f.name()));
+    }
+    // The same holds again, each ended by an inductance probe, once the move has long
+    // settled (the readings that answer its last levels come the converter's delay
+    // later); a run of its own, so that the spring and the mass are read without it.
+    let probe = hold_probe(&m);
+    let probe_ticks = 2 * probe.cycles as usize * usize::from(probe.half_ticks);
+    let tail = usize::from(sc.controller.delay_ticks) + 1;
+    let probe_at = |k: usize| (k + 1) * hold_ticks - (probe_ticks + tail).min(window_ticks);
+    sc.inductance_probes = (0..crate::actuator::SEQUENCE.len())
+        .map(|k| crate::scenario::InductanceProbe {
+            at_s: probe_at(k) as f64 / rate,
+            ..probe
+        })
+        .collect();
+    let probed = crate::sim::run(&sc)?;
     let (move_decimation, window_decimation) = decimations(&sc.controller, stroke_m, rate);
     // The board's capture from `from`: the position's mean over each sample's ticks, the
     // current's root mean square signed as at the last.
@@ -378,7 +410,149 @@ pub fn mechanics(
             )
         }),
     };
-    Ok(Ok(Mechanics::fit(report, stroke_m, &holds)))
+    let (open, closed) = (
+        f64::from(report.ends.open_m),
+        f64::from(report.ends.closed_m),
+    );
+    // A probe that latched a fault, or ran after one, reads nothing.
+    let faulted_at = probed.samples.iter().position(|s| s.fault.is_some());
+    let inductances = core::array::from_fn(|k| {
+        let end = probe_at(k) + probe_ticks + tail;
+        if faulted_at.is_some_and(|f| f < end) {
+            return None;
+        }
+        let s = probed.samples.get(probe_at(k)..end)?;
+        let u: Vec<f64> = s.iter().map(|q| q.u_drive_v).collect();
+        let i: Vec<f64> = s.iter().map(|q| q.i_meas_a).collect();
+        let y = s[..probe_ticks].iter().map(|q| q.x_meas_m).sum::<f64>() / probe_ticks as f64;
+        let (l, spread) = probe_inductance(
+            &u[..probe_ticks],
+            &i,
+            usize::from(probe.half_ticks),
+            usize::from(sc.controller.delay_ticks),
+            1.0 / rate,
+            f64::from(report.resistance.ohm),
+        )?;
+        (spread < HOLD_PROBE_MAX_SPREAD * l)
+            .then(|| (stroke_m * (y - open) / (closed - open), l, spread))
+    });
+    let mut mechanics = Mechanics::fit(report, stroke_m, &holds);
+    mechanics.inductances = inductances;
+    Ok(Ok(mechanics))
+}
+
+/// Share of the rated current the inductance probe at each hold steps the desired
+/// current up and down by: small beside the hold's current, so that the residual
+/// detector's bounds, which the probe's steps test at every tick, hold on a coil the
+/// stops' two-point line misses by a few per cent between them.
+pub const HOLD_PROBE_SHARE: f64 = 0.05;
+
+/// Periods at each level of the hold's probe: the second half's readings are each
+/// level's mean, and the relation the probe's estimate rests on is exact whether or not
+/// the coil's current settles within a level (longer levels, for slow coils, let the
+/// pull's square wave move the armature and read 1 to 3 % off on the family's positioner
+/// and valve).
+pub const HOLD_PROBE_HALF_TICKS: u16 = 16;
+
+/// Largest spread (two standard errors, relative) of an inductance a hold's probe reads
+/// for it to count as read: a wider one is a hold the armature did not keep still.
+pub const HOLD_PROBE_MAX_SPREAD: f64 = 0.03;
+
+/// Cycles of the hold's probe (up and down): the estimate's spread falls as the square
+/// root of their number.
+pub const HOLD_PROBE_CYCLES: u32 = 16;
+
+/// The inductance probe at each hold of [`mechanics`] for the measured actuator `a`
+/// (its start is set per hold): [`HOLD_PROBE_SHARE`] of the rated current,
+/// [`HOLD_PROBE_CYCLES`] cycles of [`HOLD_PROBE_HALF_TICKS`] periods at each level.
+#[must_use]
+pub fn hold_probe(a: &Actuator) -> crate::scenario::InductanceProbe {
+    crate::scenario::InductanceProbe {
+        at_s: 0.0,
+        amplitude_a: HOLD_PROBE_SHARE * f64::from(a.coil.rated_current_a),
+        half_ticks: HOLD_PROBE_HALF_TICKS,
+        cycles: HOLD_PROBE_CYCLES,
+    }
+}
+
+/// The inductance an inductance probe ([`ema::control::Probe`]) reads, from the board's
+/// drive `u_v` (the voltage set at each tick, applied over the period after it) and its
+/// current readings `i_a` (each `delay` periods old), both from the probe's first tick;
+/// `half_ticks` at each level, `r_ohm` the coil's resistance, `ts_s` the period:
+/// `(inductance [H], two standard errors of it [H])`.
+///
+/// With the armature all but still and the voltage held over each period, the coil's
+/// current obeys `i(k+1) - i(k) = (1 - a) (u(k) / R - i(k))`, `a = exp(-Ts R / L)`,
+/// exactly, however few periods its time constant spans; summed from any reading `j`
+/// to any later `k`, `i(k) - i(j) = (1 - a) (C(k) - C(j))`, `C` the running sum of
+/// `u / R - i`. Each level is read as the means of `i` and of `C` over its second half,
+/// and each step from one level to the next gives a change of both: `1 - a` is the sum
+/// of the changes into the upper levels less those into the lower ones, the one over the
+/// other. A constant error of the applied voltage (the bridge's drops) cancels between
+/// the steps up and down, and a resistance a fraction off costs that fraction times a
+/// level's length over twice the coil's time constant. The spread is the cycles' (a
+/// step down and the step up after it). `None` without three whole cycles, or a current
+/// that did not step.
+#[must_use]
+#[allow(clippy::cast_precision_loss)]
+pub fn probe_inductance(
+    u_v: &[f64],
+    i_a: &[f64],
+    half_ticks: usize,
+    delay: usize,
+    ts_s: f64,
+    r_ohm: f64,
+) -> Option<(f64, f64)> {
+    let levels = if half_ticks < 2 {
+        0
+    } else {
+        u_v.len().min(i_a.len().saturating_sub(delay)) / half_ticks
+    };
+    if levels < 6 {
+        return None;
+    }
+    let mut c = 0.0;
+    let running: Vec<(f64, f64)> = (0..levels * half_ticks)
+        .map(|k| {
+            let i = i_a[k + delay];
+            let here = (i, c);
+            c += u_v[k] / r_ohm - i;
+            here
+        })
+        .collect();
+    let read = |h: usize| {
+        let w = &running[h * half_ticks + half_ticks / 2..(h + 1) * half_ticks];
+        let n = w.len() as f64;
+        w.iter()
+            .fold((0.0, 0.0), |(i, c), q| (i + q.0 / n, c + q.1 / n))
+    };
+    let reads: Vec<(f64, f64)> = (0..levels).map(read).collect();
+    // A step down (into an odd level) and the step up after it, as many of each.
+    let pairs: Vec<(f64, f64)> = (1..levels - 1)
+        .step_by(2)
+        .map(|h| {
+            let (before, down, up) = (reads[h - 1], reads[h], reads[h + 1]);
+            (
+                (up.0 - down.0) - (down.0 - before.0),
+                (up.1 - down.1) - (down.1 - before.1),
+            )
+        })
+        .collect();
+    let inductance = |di: f64, e: f64| {
+        let a = 1.0 - di / e;
+        (a > 0.0 && a < 1.0).then(|| -ts_s * r_ohm / a.ln())
+    };
+    let (di, e) = pairs
+        .iter()
+        .fold((0.0, 0.0), |(d, e), p| (d + p.0, e + p.1));
+    let l = inductance(di, e)?;
+    let n = pairs.len() as f64;
+    let var = pairs
+        .iter()
+        .map(|p| (inductance(p.0, p.1).unwrap_or(f64::INFINITY) - l).powi(2))
+        .sum::<f64>()
+        / (n - 1.0);
+    Some((l, 2.0 * (var / n).sqrt()))
 }
 
 /// The spring's rate and preload from the readings `(position [m], current [A])` of each

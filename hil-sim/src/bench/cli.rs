@@ -607,6 +607,7 @@ fn measure_mechanics<P: std::io::Read + Write>(
     let Mechanics {
         spring: s,
         armature,
+        ..
     } = Mechanics::fit(report, stroke_m, &holds);
     for (x, f) in s.holds {
         writeln!(
@@ -643,6 +644,7 @@ fn measure_mechanics<P: std::io::Read + Write>(
     Ok(Mechanics {
         spring: s,
         armature,
+        inductances: [None; crate::actuator::SEQUENCE.len()],
     })
 }
 

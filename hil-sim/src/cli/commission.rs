@@ -71,6 +71,17 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                     )
                 });
                 let critical = 2.0 * (plant.spring_n_per_m * plant.mass_kg).sqrt();
+                // The largest over the holds (NaN: a probe read nothing).
+                let held = m.inductances.iter().fold(0.0, |w: f64, p| {
+                    let e = p.map_or(f64::NAN, |(x, l, _)| {
+                        (l / plant.inductance_h(plant.gap_m(x)) - 1.0).abs()
+                    });
+                    if e > w || e.is_nan() {
+                        e
+                    } else {
+                        w
+                    }
+                });
                 [
                     m.spring.n_per_m / plant.spring_n_per_m - 1.0,
                     (m.spring.preload_n - plant.preload_n)
@@ -78,6 +89,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                     mass,
                     friction,
                     friction * plant.friction_n_s_per_m / critical,
+                    held,
                 ]
             });
             let closed = if args.tune {
@@ -148,7 +160,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         row(&mut t, what, v, Some(*target));
     }
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut mechanics: Vec<[f64; 5]> = Vec::new();
+    let mut mechanics: Vec<[f64; 6]> = Vec::new();
     for s in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
         match s {
             Ok(e) => mechanics.push(*e),
@@ -164,6 +176,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             "friction error [% of the critical damping]",
             Some(100.0 * commissioning::FRICTION_CLASS_DAMPING),
         ),
+        ("inductance error at the holds [%]", Some(5.0)),
     ]
     .into_iter()
     .enumerate()

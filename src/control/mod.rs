@@ -351,9 +351,9 @@ impl Config {
         latched
     }
 
-    /// Clears a latched fault and restarts the observer, the law and the detectors from
-    /// scratch; fault counters and the coil's I^2 t (it is still warm) are kept. The next
-    /// tick checks everything again before driving.
+    /// Clears a latched fault, stops an inductance probe and restarts the observer, the
+    /// law and the detectors from scratch; fault counters and the coil's I^2 t (it is
+    /// still warm) are kept. The next tick checks everything again before driving.
     pub fn rearm(&self, state: &mut State) {
         state.supervisor.clear();
         state.monitor.rearm();
@@ -361,6 +361,7 @@ impl Config {
         state.law = self.law.initial_state();
         state.shaping = shaping::State::default();
         state.u_prev_v = 0.0;
+        state.probe = Probe::default();
     }
 
     fn step<P: SetDutyCycle, O: OutputPin>(
@@ -529,6 +530,15 @@ mod tests {
         let mut stopped = Probe { half_ticks: 0, ..p };
         stopped.ticks_left = 5;
         assert_eq!(stopped.next(), 0.0);
+        // A re-arm stops a running probe.
+        let (cfg, mut st, _) = setup();
+        st.probe = Probe {
+            amplitude_a: 0.25,
+            half_ticks: 3,
+            ticks_left: 12,
+        };
+        cfg.rearm(&mut st);
+        assert_eq!(st.probe, Probe::default());
     }
 
     #[test]

@@ -266,6 +266,19 @@ impl Mechanics {
     }
 }
 
+impl Mechanics {
+    /// Each hold's inductance error against `plant`'s at the hold's position, relative
+    /// (NaN where the probe read nothing).
+    #[must_use]
+    pub fn inductance_errors(&self, plant: &Params) -> [f64; crate::actuator::SEQUENCE.len()] {
+        self.inductances.map(|p| {
+            p.map_or(f64::NAN, |(x, l, _)| {
+                l / plant.inductance_h(plant.gap_m(x)) - 1.0
+            })
+        })
+    }
+}
+
 /// A hold whose window's position spreads (one standard deviation) over more than this
 /// share of the stroke is not at rest: the loop limit-cycles about it.
 pub const REST_SHARE: f64 = 0.002;
@@ -410,10 +423,7 @@ pub fn mechanics(
             )
         }),
     };
-    let (open, closed) = (
-        f64::from(report.ends.open_m),
-        f64::from(report.ends.closed_m),
-    );
+    let position = corrected(report, stroke_m);
     // A probe that latched a fault, or ran after one, reads nothing.
     let faulted_at = probed.samples.iter().position(|s| s.fault.is_some());
     let inductances = core::array::from_fn(|k| {
@@ -433,8 +443,7 @@ pub fn mechanics(
             1.0 / rate,
             f64::from(report.resistance.ohm),
         )?;
-        (spread < HOLD_PROBE_MAX_SPREAD * l)
-            .then(|| (stroke_m * (y - open) / (closed - open), l, spread))
+        (spread < HOLD_PROBE_MAX_SPREAD * l).then(|| (position(y), l, spread))
     });
     let mut mechanics = Mechanics::fit(report, stroke_m, &holds);
     mechanics.inductances = inductances;
@@ -608,20 +617,28 @@ pub fn fit_spring(
 /// through the two measured inductances, `s` its slope (the force of the two-inductance
 /// form); `x = stroke (y - y_open) / (y_closed - y_open)`.
 fn pull(report: &Report, stroke_m: f64) -> impl Fn(f64, f64) -> (f64, f64) {
-    let (open, closed) = (
-        f64::from(report.ends.open_m),
-        f64::from(report.ends.closed_m),
-    );
+    let position = corrected(report, stroke_m);
     let (inv_open, inv_closed) = (
         1.0 / f64::from(report.inductance.open_h),
         1.0 / f64::from(report.inductance.closed_h),
     );
     let slope = (inv_open - inv_closed) / stroke_m;
     move |y: f64, i: f64| {
-        let x = (stroke_m * (y - open) / (closed - open)).clamp(0.0, stroke_m);
+        let x = position(y);
         let inv_l = inv_closed + (stroke_m - x) * slope;
         (x, 0.5 * i * i * slope / (inv_l * inv_l))
     }
+}
+
+/// The position \[m\] of a reading `y` \[m\] corrected with the end stops the
+/// commissioning's `report` measured, `x = stroke (y - y_open) / (y_closed - y_open)`,
+/// within the stroke.
+fn corrected(report: &Report, stroke_m: f64) -> impl Fn(f64) -> f64 {
+    let (open, closed) = (
+        f64::from(report.ends.open_m),
+        f64::from(report.ends.closed_m),
+    );
+    move |y: f64| (stroke_m * (y - open) / (closed - open)).clamp(0.0, stroke_m)
 }
 
 /// One commissioning and what it is judged against.
@@ -842,7 +859,7 @@ pub fn curve_error(a: &Actuator, report: &Report, plant: &Params) -> Result<f64,
             let got = model.magnetics.inductance_h(model.gap_m(x as f32));
             (f64::from(got) / plant.inductance_h(plant.gap_m(x)) - 1.0).abs()
         })
-        .fold(0.0, |w, e| if e > w || e.is_nan() { e } else { w }))
+        .fold(0.0, crate::targets::worse))
 }
 
 /// The armature's mass and friction measured by [`fit_armature`].

@@ -243,11 +243,11 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
             } = holds_on_a_drawn_plant(&a, &mut rng);
             let (s, arm) = match mechanics {
                 Ok(m) => {
-                    for (k, probe) in m.inductances.iter().enumerate() {
+                    let errors = m.inductance_errors(&plant);
+                    for (k, (probe, e)) in m.inductances.iter().zip(errors).enumerate() {
                         let Some((x, l, spread)) = *probe else {
                             panic!("{name}: no inductance at hold {k}; {draw:?}")
                         };
-                        let e = l / plant.inductance_h(plant.gap_m(x)) - 1.0;
                         eprintln!(
                             "{name}: hold {k} at {:.3} mm: L {l:.4e} H ({:+.2} %, +- {:.2} %)",
                             x * 1e3,

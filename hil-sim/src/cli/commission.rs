@@ -72,16 +72,10 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                 });
                 let critical = 2.0 * (plant.spring_n_per_m * plant.mass_kg).sqrt();
                 // The largest over the holds (NaN: a probe read nothing).
-                let held = m.inductances.iter().fold(0.0, |w: f64, p| {
-                    let e = p.map_or(f64::NAN, |(x, l, _)| {
-                        (l / plant.inductance_h(plant.gap_m(x)) - 1.0).abs()
-                    });
-                    if e > w || e.is_nan() {
-                        e
-                    } else {
-                        w
-                    }
-                });
+                let held = m
+                    .inductance_errors(&plant)
+                    .iter()
+                    .fold(0.0, |w, e| crate::targets::worse(w, e.abs()));
                 [
                     m.spring.n_per_m / plant.spring_n_per_m - 1.0,
                     (m.spring.preload_n - plant.preload_n)

@@ -231,6 +231,17 @@ pub struct Mechanics {
 }
 
 impl Mechanics {
+    /// Each hold's inductance error against `plant`'s at the hold's position, relative
+    /// (NaN where the probe read nothing).
+    #[must_use]
+    pub fn inductance_errors(&self, plant: &Params) -> [f64; crate::actuator::SEQUENCE.len()] {
+        self.inductances.map(|p| {
+            p.map_or(f64::NAN, |(x, l, _)| {
+                l / plant.inductance_h(plant.gap_m(x)) - 1.0
+            })
+        })
+    }
+
     /// The spring from the `holds`' windows ([`fit_spring`]), the mass and the friction
     /// from their moves ([`fit_armature`]). When a hold is not at rest ([`REST_SHARE`]),
     /// the spring's rate is corrected by what the moves read it missed
@@ -263,19 +274,6 @@ impl Mechanics {
             armature,
             inductances: [None; crate::actuator::SEQUENCE.len()],
         }
-    }
-}
-
-impl Mechanics {
-    /// Each hold's inductance error against `plant`'s at the hold's position, relative
-    /// (NaN where the probe read nothing).
-    #[must_use]
-    pub fn inductance_errors(&self, plant: &Params) -> [f64; crate::actuator::SEQUENCE.len()] {
-        self.inductances.map(|p| {
-            p.map_or(f64::NAN, |(x, l, _)| {
-                l / plant.inductance_h(plant.gap_m(x)) - 1.0
-            })
-        })
     }
 }
 

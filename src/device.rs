@@ -91,6 +91,9 @@ pub const SAMPLE_SLOTS: usize = 16;
 pub const TX_CAPACITY: usize = 1024;
 /// Longest move a [`Command::Move`] may ask for \[s\].
 pub const MAX_MOVE_S: f32 = 10.0;
+/// Largest amplitude a [`Command::Probe`] may ask for, as a share of the rated current:
+/// a probe measures about a hold, it does not move the armature.
+pub const PROBE_MAX_SHARE: f32 = 0.1;
 
 /// A new configuration for the interrupt, built and validated by the main loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -150,6 +153,8 @@ pub enum Order {
     Commission(commission::Plan),
     /// The last commissioning's outcome.
     Commissioned,
+    /// Start an inductance probe (armed only; checked by the main loop).
+    Probe(control::Probe),
 }
 
 /// An order and its number.
@@ -513,7 +518,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 if let Some(f) = self.analog_fault {
                     self.cfg.trip(&mut self.state, bridge, f);
                 } else if r.setpoint_m != self.setpoint_m {
-                    self.start_capture_on_move(r.setpoint_m, 0.0);
+                    self.start_capture_on(Trigger::Move, r.setpoint_m, 0.0);
                     self.setpoint_m = r.setpoint_m;
                 }
             }
@@ -694,8 +699,10 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         self.verdict.or(self.analog_fault)
     }
 
-    fn start_capture_on_move(&mut self, to_m: f32, move_s: f32) {
-        if self.capture_state == CaptureState::Waiting && self.capture_trigger == Trigger::Move {
+    /// Starts a capture waiting on `trigger`: a move to `to_m` lasting `move_s`, or a probe
+    /// about the set point.
+    fn start_capture_on(&mut self, trigger: Trigger, to_m: f32, move_s: f32) {
+        if self.capture_state == CaptureState::Waiting && self.capture_trigger == trigger {
             self.meta = Meta {
                 armed_ticks: self.armed_ticks,
                 from_m: self.setpoint_m,
@@ -775,7 +782,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                         move_s = self.state.shaping.duration_s();
                     }
                 }
-                self.start_capture_on_move(x_m, move_s);
+                self.start_capture_on(Trigger::Move, x_m, move_s);
                 self.setpoint_m = x_m;
                 done(Ok(()))
             }
@@ -825,7 +832,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 };
                 self.capture_state = match trigger {
                     Trigger::Now => CaptureState::Running(0),
-                    Trigger::Move => CaptureState::Waiting,
+                    Trigger::Move | Trigger::Probe => CaptureState::Waiting,
                 };
                 done(Ok(()))
             }
@@ -885,6 +892,14 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 done(Ok(()))
             }
             Order::Commissioned => Outcome::Commissioned(self.commissioned),
+            Order::Probe(probe) => {
+                if !self.mode.armed() {
+                    return done(Err(Refusal::NotArmed));
+                }
+                self.state.probe = probe;
+                self.start_capture_on(Trigger::Probe, self.setpoint_m, 0.0);
+                done(Ok(()))
+            }
         }
     }
 
@@ -1325,6 +1340,32 @@ impl Dispatcher {
                 Err(r) => self.reply(seq, Reply::Refused(r)),
             },
             Command::Commissioned => self.order(seq, Order::Commissioned, then, ends),
+            Command::Probe {
+                amplitude_a,
+                half_ticks,
+                cycles,
+            } => {
+                let rated = self.params.actuator.coil.rated_current_a;
+                let checked = crate::config::within(
+                    "probe.amplitude_a",
+                    amplitude_a,
+                    0.0,
+                    PROBE_MAX_SHARE * rated,
+                );
+                match checked {
+                    Err(e) => self.reply(seq, Reply::Refused(Refusal::Invalid(Invalid::from(e)))),
+                    Ok(_) => self.order(
+                        seq,
+                        Order::Probe(control::Probe {
+                            amplitude_a,
+                            half_ticks,
+                            ticks_left: u32::from(half_ticks).saturating_mul(2 * u32::from(cycles)),
+                        }),
+                        then,
+                        ends,
+                    ),
+                }
+            }
             Command::Move { position_m, time_s } => {
                 let stroke = self.params.actuator.mechanics.stroke_m;
                 let refusal = if let Err(e) =

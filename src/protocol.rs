@@ -76,7 +76,7 @@ use crate::config;
 pub const BAUD: u32 = 460_800;
 
 /// Version of the message definitions; the first byte of every frame.
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 /// Largest frame before COBS: version, message and CRC \[bytes\].
 pub const MAX_RAW: usize = 250;
 /// Largest frame on the wire, delimiter included \[bytes\]: COBS adds one byte per 254 and
@@ -174,6 +174,19 @@ pub enum Command<'a> {
     Commission,
     /// The last commissioning's outcome ([`Reply::Commissioned`]).
     Commissioned,
+    /// Steps the loop's desired current `+-amplitude_a` about the hold's, `half_ticks`
+    /// ticks at each level, for `cycles` cycles, starting up (an inductance probe,
+    /// [`crate::control::Probe`]): armed only, the amplitude at most
+    /// [`crate::device::PROBE_MAX_SHARE`] of the rated current (no level ticks or no cycle:
+    /// no probe). A capture waiting on [`Trigger::Probe`] starts with its first tick.
+    Probe {
+        /// Half the step \[A\].
+        amplitude_a: f32,
+        /// Ticks at each level.
+        half_ticks: u16,
+        /// Cycles, up and down.
+        cycles: u16,
+    },
 }
 
 /// When a capture starts.
@@ -183,6 +196,8 @@ pub enum Trigger {
     Now,
     /// At the next change of the set point (a move).
     Move,
+    /// At the first tick of the next inductance probe ([`Command::Probe`]).
+    Probe,
 }
 
 /// A parameter's value.

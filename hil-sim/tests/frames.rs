@@ -69,6 +69,16 @@ fn corpus() -> Vec<Command<'static>> {
             trigger: Trigger::Now,
         },
         Command::ReadCapture { offset: 0 },
+        Command::Capture {
+            samples: 64,
+            decimation: 1,
+            trigger: Trigger::Probe,
+        },
+        Command::Probe {
+            amplitude_a: 0.3,
+            half_ticks: 16,
+            cycles: 2,
+        },
     ]
 }
 

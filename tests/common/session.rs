@@ -5,7 +5,8 @@
 //!
 //! The script: the start announcement; 40 ticks disarmed; status; arm; a set while armed
 //! (refused); a get; 200 ticks; a stream of two signals every 20 ticks; a capture of 32 samples every
-//! 10 ticks triggered by a move; the move to 3 mm; 3320 ticks (the position checked); the capture read back; a
+//! 10 ticks triggered by a move; the move to 3 mm; 3320 ticks (the position checked); the capture read back; an
+//! inductance probe above its limit (refused), one within it (run out over 64 ticks); a
 //! frame with a bit flipped (rejected by name); disarm; a set (accepted); status. Every
 //! answer is checked as it arrives ([`Session::run`] returns the first one that is not as
 //! expected).
@@ -39,9 +40,9 @@ pub const COMMISSIONING_TICKS: u32 = 300;
 
 /// FNV-1a (64 bit) of every byte the board sent, in order (the host computes it: see
 /// `tests/device_host.rs`).
-pub const FRAMES_HASH: u64 = 0x093f_e629_853d_cad0;
+pub const FRAMES_HASH: u64 = 0x2115_0b25_d9af_ad2f;
 /// Bytes the board sent.
-pub const FRAMES_LEN: usize = 5317;
+pub const FRAMES_LEN: usize = 5428;
 
 /// Nothing stored.
 pub struct Empty;
@@ -169,6 +170,7 @@ pub enum Answer {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Kind {
     Armed,
+    Invalid,
     Other,
 }
 
@@ -236,6 +238,7 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
                     let a = match reply {
                         Reply::Done => Answer::Done,
                         Reply::Refused(Refusal::Armed) => Answer::Refused(Kind::Armed),
+                        Reply::Refused(Refusal::Invalid(_)) => Answer::Refused(Kind::Invalid),
                         Reply::Refused(_) => Answer::Refused(Kind::Other),
                         Reply::Value(v) => Answer::Value(v),
                         Reply::Status(s) => Answer::Status {
@@ -442,6 +445,30 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
                 _ => return Err("a capture chunk is not as asked"),
             }
             seq += 1;
+        }
+        // An inductance probe while holding: one above its limit refused, one run out.
+        let rated = Actuator::PRODUCT.coil.rated_current_a;
+        let probe = |share: f32| Command::Probe {
+            amplitude_a: share * rated,
+            half_ticks: 8,
+            cycles: 4,
+        };
+        if self.request(seq, probe(0.2), clock)? != Answer::Refused(Kind::Invalid) {
+            return Err("a probe above its limit was not refused as invalid");
+        }
+        seq += 1;
+        if self.request(seq, probe(0.05), clock)? != Answer::Done {
+            return Err("a probe while holding was refused");
+        }
+        if self.controller.state().probe.ticks_left == 0 {
+            return Err("the probe did not start");
+        }
+        seq += 1;
+        for _ in 0..64 {
+            self.tick(clock)?;
+        }
+        if self.controller.state().probe.ticks_left != 0 {
+            return Err("the probe did not end");
         }
         // A frame damaged on the way: rejected for its CRC, nothing else happens.
         let mut frame = [0u8; MAX_FRAME];

@@ -453,6 +453,32 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
         board.mechanics.spring_n_per_m,
         measured.mechanics.spring_n_per_m
     );
+    // The inductance at each of the four holds, from the board's probes: within 5 % of the
+    // plant's at the hold's position.
+    let sc = hil_sim::bench::board::scenario(&Actuator::PRODUCT, true).unwrap();
+    let mut plant = sc.plant.resolve(&sc.controller.plant);
+    plant.scale_surfaces(0.85);
+    let holds: Vec<(f64, f64)> = printed
+        .lines()
+        .filter_map(|l| {
+            let rest = l.trim().strip_prefix("inductance ")?;
+            let (l_uh, rest) = rest.split_once(" uH +- ")?;
+            let x_mm = rest.split_once(" at ")?.1.strip_suffix(" mm")?;
+            Some((x_mm.parse().ok()?, l_uh.parse().ok()?))
+        })
+        .collect();
+    assert_eq!(holds.len(), 4, "{printed}");
+    for (x_mm, l_uh) in holds {
+        let want = plant.inductance_h(plant.gap_m(x_mm * 1e-3));
+        eprintln!(
+            "inductance at {x_mm} mm: {l_uh} uH (plant {} uH)",
+            want * 1e6
+        );
+        assert!(
+            (l_uh * 1e-6 / want - 1.0).abs() < 0.05,
+            "{x_mm} mm\n{printed}"
+        );
+    }
     // The mass from the moves between the holds: within 10 %, stored on the board.
     let m = f64::from(board.mechanics.mass_kg);
     eprintln!("mass {m} kg (plant {mass_kg})");

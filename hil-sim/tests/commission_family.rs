@@ -327,8 +327,11 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
             cur.push(a * cur[k] + (1.0 - a) * (drive - 0.3) / r);
             read.push(cur[k] + noise.sample(&mut rng));
         }
+        // Read as two probes' captures, split between levels.
+        let cut = 20 * half;
+        let runs: [(&[f64], &[f64]); 2] = [(&u[..cut], &read[..=cut]), (&u[cut..], &read[cut..])];
         let (got, spread) =
-            hil_sim::commissioning::probe_inductance(&u, &read, half, 1, ts, r).unwrap();
+            hil_sim::commissioning::probe_inductance(&runs, half, 1, ts, r).unwrap();
         eprintln!(
             "{periods} periods: {:+.3} % (+- {:.3} %)",
             100.0 * (got / l - 1.0),
@@ -340,7 +343,7 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
         );
         assert!(spread / l < 0.01, "{periods}: spread {spread}");
         let (off, _) =
-            hil_sim::commissioning::probe_inductance(&u, &read, half, 1, ts, 1.02 * r).unwrap();
+            hil_sim::commissioning::probe_inductance(&runs, half, 1, ts, 1.02 * r).unwrap();
         let bound = 0.02 * half as f64 / (2.0 * periods) + 0.005;
         assert!(
             (off / l - 1.0).abs() < bound,
@@ -374,6 +377,21 @@ fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_l
         f64::from(hil_sim::commissioning::MASS_CLASS as f32)
     );
     assert!(0.1 < t.friction && t.friction < 0.15, "{t:?}");
+    // The holds' probes read the circuit within the file's surface tolerance: kept. Had
+    // they read it 30 % below its form, the tolerance would cover that.
+    assert_eq!(t.surface, a.tolerance.surface);
+    let deviation = m.form_deviation(&measured).unwrap();
+    eprintln!(
+        "the form within {:.2} % of the holds' probes",
+        100.0 * deviation
+    );
+    assert!(deviation < 0.05, "{deviation}");
+    let mut off = m;
+    for p in off.inductances.iter_mut().flatten() {
+        p.1 *= 0.7;
+    }
+    let (wider, _) = hil_sim::commissioning::measured(&a, &d.report, Some(&off)).unwrap();
+    assert!(wider.tolerance.surface > 0.42, "{:?}", wider.tolerance);
     let c = hil_sim::commissioning::closed_loop(&a, &d.report, Some(&m), plant).unwrap();
     eprintln!("{c:?}");
     assert_eq!(c.misses(), Vec::<&str>::new(), "{c:?}");

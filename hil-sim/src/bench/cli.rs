@@ -529,12 +529,27 @@ fn measure_mechanics<P: std::io::Read + Write>(
     .round()
     .clamp(1.0, f64::from(capacity))) as u16;
     let sets = commissioned_sets(file, &m, &tuning)?;
+    let probe = crate::commissioning::hold_probe(&m);
+    let delay = usize::from(settings.delay_ticks);
+    let span = u16::try_from(crate::commissioning::probe_capture(probe.ticks(), delay))
+        .unwrap_or(u16::MAX)
+        .min(capacity);
     writeln!(
         out,
         "spring, mass and friction: the loop closed with the measured coil and circuit, default tuning; holds of {} s at {}",
         sig(hold_s, 3),
         crate::actuator::SEQUENCE.map(|f| format!("{} mm", sig(f * stroke_m * 1e3, 3))).join(", ")
     )?;
+    writeln!(
+        out,
+        "inductance: {} probes at the end of each hold, +-{} A about the hold's current, {} cycles of {} ticks at each level",
+        crate::commissioning::HOLD_PROBE_RUNS,
+        sig(probe.amplitude_a, 3),
+        probe.cycles,
+        probe.half_ticks
+    )?;
+    let mut probes: [Vec<Vec<(f64, f64, f64)>>; crate::actuator::SEQUENCE.len()] =
+        Default::default();
     let stored = matches!(status(link)?.params, ema::protocol::Source::Stored);
     let mut held = || -> anyhow::Result<Holds> {
         for (name, value) in &sets {
@@ -590,6 +605,23 @@ fn measure_mechanics<P: std::io::Read + Write>(
             // The window: the hold's end, once the move has settled.
             let c = capture_move(link, window_samples, window_decimation, None, rate_hz)?;
             holds.windows[k] = readings(&c)?;
+            // The inductance at the hold: each probe captured at every tick from its first.
+            for _ in 0..crate::commissioning::HOLD_PROBE_RUNS {
+                link.done(Command::Capture {
+                    samples: span,
+                    decimation: 1,
+                    trigger: Trigger::Probe,
+                })?;
+                link.done(probe.command())?;
+                let c = read_capture(link, span, 1, rate_hz)?;
+                readings(&c)?;
+                probes[k].push(
+                    c.samples
+                        .iter()
+                        .map(|s| (f64::from(s.x_m), f64::from(s.u_v), f64::from(s.i_a)))
+                        .collect(),
+                );
+            }
         }
         Ok(holds)
     };
@@ -641,10 +673,29 @@ fn measure_mechanics<P: std::io::Read + Write>(
             "mass and friction not measured: every move came near a stop; the file's kept"
         )?,
     }
+    let inductances = probes.each_ref().map(|runs| {
+        crate::commissioning::hold_inductance(runs, &probe, delay, 1.0 / rate_hz, report, stroke_m)
+    });
+    for (f, l) in crate::actuator::SEQUENCE.iter().zip(&inductances) {
+        let line = match l {
+            Some((x, l, spread)) => format!(
+                "{} uH +- {} at {} mm",
+                sig(l * 1e6, 4),
+                sig(spread * 1e6, 2),
+                sig(x * 1e3, 4)
+            ),
+            None => format!(
+                "not read at the hold at {} mm (spread above {} %)",
+                sig(f * stroke_m * 1e3, 3),
+                100.0 * crate::commissioning::HOLD_PROBE_MAX_SPREAD
+            ),
+        };
+        writeln!(out, "  inductance {line}")?;
+    }
     Ok(Mechanics {
         spring: s,
         armature,
-        inductances: [None; crate::actuator::SEQUENCE.len()],
+        inductances,
     })
 }
 
@@ -832,9 +883,26 @@ pub fn actuator_file(
                 )
             },
         );
+        let probed: Vec<String> = m
+            .inductances
+            .iter()
+            .flatten()
+            .map(|(x, l, spread)| format!("{} +- {} H at {} m", sig(*l, 4), sig(*spread, 2), sig(*x, 4)))
+            .collect();
+        let inductances = match m.form_deviation(&a) {
+            Some(d) => format!(
+                "#   inductance at the holds (probes, loop closed; two standard errors):\n\
+                 #     {}\n\
+                 #   the circuit below is within {} % of them (tolerance.surface = {})\n",
+                probed.join(", "),
+                sig(100.0 * d, 2),
+                a.tolerance.surface
+            ),
+            None => "#   inductance at the holds: no probe read one\n".to_owned(),
+        };
         format!(
             "#   mechanics.spring_n_per_m = {} +- {} (two standard errors of the fit),\n\
-             #   mechanics.preload_n = {} (closed-loop holds at four positions)\n{armature}",
+             #   mechanics.preload_n = {} (closed-loop holds at four positions)\n{armature}{inductances}",
             sig(s.n_per_m, 4),
             sig(s.spread_n_per_m, 2),
             sig(s.preload_n, 4)

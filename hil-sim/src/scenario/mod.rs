@@ -89,21 +89,35 @@ pub struct InductanceProbe {
     /// Ticks at each level.
     pub half_ticks: u16,
     /// Cycles (each up and down).
-    pub cycles: u32,
+    pub cycles: u16,
 }
 
 impl InductanceProbe {
-    /// The controller's probe, started.
+    /// Ticks it runs.
+    #[must_use]
+    pub fn ticks(&self) -> usize {
+        2 * usize::from(self.cycles) * usize::from(self.half_ticks)
+    }
+
+    /// The controller's probe, started (as the board starts it on [`Self::command`]).
     #[must_use]
     #[allow(clippy::cast_possible_truncation)]
     pub fn start(&self) -> ema::control::Probe {
         ema::control::Probe {
             amplitude_a: self.amplitude_a as f32,
             half_ticks: self.half_ticks,
-            ticks_left: self
-                .cycles
-                .saturating_mul(2)
-                .saturating_mul(u32::from(self.half_ticks)),
+            ticks_left: u32::from(self.half_ticks).saturating_mul(2 * u32::from(self.cycles)),
+        }
+    }
+
+    /// The board's command that starts it.
+    #[must_use]
+    #[allow(clippy::cast_possible_truncation)]
+    pub fn command(&self) -> ema::protocol::Command<'static> {
+        ema::protocol::Command::Probe {
+            amplitude_a: self.amplitude_a as f32,
+            half_ticks: self.half_ticks,
+            cycles: self.cycles,
         }
     }
 }

@@ -464,7 +464,12 @@ pub fn mechanics(
                 let s = probed.samples.get(probe_at(k, r)..probe_at(k, r) + span)?;
                 Some(
                     s.iter()
-                        .map(|q| (q.x_meas_m, q.u_drive_v, q.i_meas_a))
+                        .map(|q| ProbeSample {
+                            y_m: q.x_meas_m,
+                            u_v: q.u_drive_v,
+                            i_a: q.i_meas_a,
+                            vbus_v: q.vbus_meas_v,
+                        })
                         .collect(),
                 )
             })
@@ -501,10 +506,10 @@ pub const HOLD_PROBE_MAX_SPREAD: f64 = 0.03;
 pub const HOLD_PROBE_CYCLES: u16 = 7;
 
 /// Probes at each hold, one captured at a time: the estimate's spread falls as the square
-/// root of their cycles' number. With two, one drawn valve in a thousand read a hold 5.1 %
-/// off (`hil-sim commission valve --n 1000`); levels half as long, more cycles in the same
-/// capture, read the valve and the product better but a drawn 12 V solenoid's holds up to
-/// 7 % off (its coil does not step within them).
+/// root of their cycles' number, and three give about as many as one probe of 16 cycles
+/// (levels half as long, more cycles in the same capture, read a drawn 12 V solenoid's
+/// holds up to 7 % off, measured before [`hold_inductance`] took out the supply's sag and
+/// the armature's motion: its coil does not step within them).
 pub const HOLD_PROBE_RUNS: usize = 3;
 
 /// The board's capture of a probe of `ticks`, the converter `delay` ticks late: the
@@ -558,7 +563,8 @@ pub fn hold_probe(a: &Actuator) -> crate::scenario::InductanceProbe {
 #[must_use]
 #[allow(clippy::cast_precision_loss)]
 pub fn probe_inductance(
-    runs: &[(&[f64], &[f64])],
+    runs: &[(&[f64], &[f64], &[f64])],
+    motion_a_s_per_m: f64,
     half_ticks: usize,
     delay: usize,
     ts_s: f64,
@@ -566,7 +572,17 @@ pub fn probe_inductance(
 ) -> Option<(f64, f64)> {
     let pairs: Vec<(f64, f64)> = runs
         .iter()
-        .flat_map(|&(u_v, i_a)| probe_pairs(u_v, i_a, half_ticks, delay, r_ohm))
+        .flat_map(|&(u_v, i_a, x_m)| {
+            probe_pairs(
+                u_v,
+                i_a,
+                x_m,
+                motion_a_s_per_m / ts_s,
+                half_ticks,
+                delay,
+                r_ohm,
+            )
+        })
         .collect();
     if pairs.len() < 2 {
         return None;
@@ -594,6 +610,8 @@ pub fn probe_inductance(
 fn probe_pairs(
     u_v: &[f64],
     i_a: &[f64],
+    x_m: &[f64],
+    motion_per_m: f64,
     half_ticks: usize,
     delay: usize,
     r_ohm: f64,
@@ -607,7 +625,8 @@ fn probe_pairs(
     let running: Vec<(f64, f64)> = (0..levels * half_ticks)
         .map(|k| {
             let i = i_a[k + delay];
-            let here = (i, c);
+            let x = x_m.get(k + delay).copied().unwrap_or(0.0);
+            let here = (i, c - motion_per_m * x);
             c += u_v[k] / r_ohm - i;
             here
         })
@@ -631,17 +650,43 @@ fn probe_pairs(
         .collect()
 }
 
+/// What the board captures of a probe at every tick: the position and the current as
+/// read, the drive set, the bus as read.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProbeSample {
+    /// Position reading \[m\].
+    pub y_m: f64,
+    /// Average coil voltage the bridge was set to \[V\].
+    pub u_v: f64,
+    /// Current reading \[A\].
+    pub i_a: f64,
+    /// Bus reading \[V\].
+    pub vbus_v: f64,
+}
+
 /// One hold's inductance from its probes' captures (the board's samples at every tick
-/// from each probe's first: position \[m\], drive \[V\], current \[A\]), read with
-/// [`probe_inductance`] for the `probe`, the converter `delay` ticks late, the period
-/// `ts_s`: the mean position corrected with the end stops the `report` measured,
-/// `x = stroke (y - y_open) / (y_closed - y_open)`, the inductance and two standard
-/// errors of it; `None` when the probes read nothing or their spread exceeds
-/// [`HOLD_PROBE_MAX_SPREAD`]. The same reading on the bench and in [`mechanics`].
+/// from each probe's first), read with [`probe_inductance`] for the `probe`, the
+/// converter `delay` ticks late, the period `ts_s`: the mean position corrected with the
+/// end stops the `report` measured, `x = stroke (y - y_open) / (y_closed - y_open)`, the
+/// inductance and two standard errors of it; `None` when the probes read nothing or
+/// their spread exceeds [`HOLD_PROBE_MAX_SPREAD`]. The same reading on the bench and in
+/// [`mechanics`].
+///
+/// Two things the coil sees besides its inductance are taken out first:
+/// - **The supply's sag.** The bridge sets its duty for the bus it last read, but over
+///   the period the bus sags with the coil's current behind the supply's resistance: the
+///   voltage applied is the drive scaled by the bus read after the period over the bus
+///   the drive was set for. Near the open stop, where the coil's time constant is about
+///   a period, this alone read drawn valves up to 4 % high.
+/// - **The armature's motion.** The probe's pull steps the armature back and forth by
+///   micrometres, and the flux it moves, `i L'(x) dx`, comes with the current's steps in
+///   antiphase: near the closed stop, where `L'` is large, it read the valves' holds 2 %
+///   low. It is taken out with the hold's current, the position readings and the slope
+///   of the stops' two-point line, `L' = L^2 s`.
 #[must_use]
 #[allow(clippy::cast_precision_loss)]
 pub fn hold_inductance(
-    runs: &[Vec<(f64, f64, f64)>],
+    runs: &[Vec<ProbeSample>],
     probe: &crate::scenario::InductanceProbe,
     delay: usize,
     ts_s: f64,
@@ -649,31 +694,49 @@ pub fn hold_inductance(
     stroke_m: f64,
 ) -> Option<(f64, f64, f64)> {
     let ticks = probe.ticks();
-    let split: Vec<(Vec<f64>, Vec<f64>)> = runs
+    let position = corrected(report, stroke_m);
+    let split: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = runs
         .iter()
         .map(|s| {
+            let applied = (0..ticks.min(s.len()))
+                .map(|k| {
+                    let (set, after) = (s[k].vbus_v, s.get(k + 1 + delay).map(|q| q.vbus_v));
+                    match after {
+                        Some(after) if set > 0.0 => s[k].u_v * after / set,
+                        _ => s[k].u_v,
+                    }
+                })
+                .collect();
             (
-                s.iter().take(ticks).map(|q| q.1).collect(),
-                s.iter().map(|q| q.2).collect(),
+                applied,
+                s.iter().map(|q| q.i_a).collect(),
+                s.iter().map(|q| position(q.y_m)).collect(),
             )
         })
         .collect();
-    let slices: Vec<(&[f64], &[f64])> = split
+    let slices: Vec<(&[f64], &[f64], &[f64])> = split
         .iter()
-        .map(|(u, i)| (u.as_slice(), i.as_slice()))
+        .map(|(u, i, x)| (u.as_slice(), i.as_slice(), x.as_slice()))
         .collect();
+    let (n, i_sum, y_sum) = runs
+        .iter()
+        .flat_map(|s| s.iter().take(ticks))
+        .fold((0.0, 0.0, 0.0), |(n, i, y), q| {
+            (n + 1.0, i + q.i_a, y + q.y_m)
+        });
+    let x = position(y_sum / n);
+    let slope = pull_slope(report, stroke_m);
+    let l_line = 1.0 / (1.0 / f64::from(report.inductance.closed_h) + (stroke_m - x) * slope);
+    let r_ohm = f64::from(report.resistance.ohm);
     let (l, spread) = probe_inductance(
         &slices,
+        (i_sum / n) * l_line * l_line * slope / r_ohm,
         usize::from(probe.half_ticks),
         delay,
         ts_s,
-        f64::from(report.resistance.ohm),
+        r_ohm,
     )?;
-    let (n, y) = runs
-        .iter()
-        .flat_map(|s| s.iter().take(ticks))
-        .fold((0.0, 0.0), |(n, y), q| (n + 1.0, y + q.0));
-    (spread < HOLD_PROBE_MAX_SPREAD * l).then(|| (corrected(report, stroke_m)(y / n), l, spread))
+    (spread < HOLD_PROBE_MAX_SPREAD * l).then_some((x, l, spread))
 }
 
 /// The spring's rate and preload from the readings `(position [m], current [A])` of each
@@ -728,16 +791,21 @@ pub fn fit_spring(
 /// form); `x = stroke (y - y_open) / (y_closed - y_open)`.
 fn pull(report: &Report, stroke_m: f64) -> impl Fn(f64, f64) -> (f64, f64) {
     let position = corrected(report, stroke_m);
-    let (inv_open, inv_closed) = (
-        1.0 / f64::from(report.inductance.open_h),
-        1.0 / f64::from(report.inductance.closed_h),
-    );
-    let slope = (inv_open - inv_closed) / stroke_m;
+    let inv_closed = 1.0 / f64::from(report.inductance.closed_h);
+    let slope = pull_slope(report, stroke_m);
     move |y: f64, i: f64| {
         let x = position(y);
         let inv_l = inv_closed + (stroke_m - x) * slope;
         (x, 0.5 * i * i * slope / (inv_l * inv_l))
     }
+}
+
+/// The slope `s` of `1/L` against the position through the two inductances the
+/// commissioning's `report` measured at the stops, over `stroke_m` \[1/(H m)\]: `1/L`
+/// falls by `s` per metre towards the closed stop, `dL/dx = L^2 s`.
+fn pull_slope(report: &Report, stroke_m: f64) -> f64 {
+    (1.0 / f64::from(report.inductance.open_h) - 1.0 / f64::from(report.inductance.closed_h))
+        / stroke_m
 }
 
 /// The position \[m\] of a reading `y` \[m\] corrected with the end stops the

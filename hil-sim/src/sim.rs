@@ -59,6 +59,8 @@ pub struct Sample {
     pub i_meas_a: f64,
     /// Average coil voltage the bridge was set to \[V\] (0 in coast).
     pub u_drive_v: f64,
+    /// Bus voltage as the tick measured it \[V\].
+    pub vbus_meas_v: f64,
     /// Observer position estimate \[m\].
     pub x_est_m: f64,
     /// Observer velocity estimate \[m/s\].
@@ -296,6 +298,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
             x_meas_m: f64::from(status.measurement.x_m),
             i_meas_a: f64::from(status.measurement.i_a),
             u_drive_v: f64::from(status.drive.u_v),
+            vbus_meas_v: f64::from(status.measurement.vbus_v),
             x_est_m: f64::from(status.estimate.x_m),
             v_est_mps: f64::from(status.estimate.v_mps),
             d_est_mps2: f64::from(status.estimate.d_mps2),

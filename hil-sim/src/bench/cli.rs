@@ -548,7 +548,7 @@ fn measure_mechanics<P: std::io::Read + Write>(
         probe.cycles,
         probe.half_ticks
     )?;
-    let mut probes: [Vec<Vec<(f64, f64, f64)>>; crate::actuator::SEQUENCE.len()] =
+    let mut probes: [Vec<Vec<crate::commissioning::ProbeSample>>; crate::actuator::SEQUENCE.len()] =
         Default::default();
     let stored = matches!(status(link)?.params, ema::protocol::Source::Stored);
     let mut held = || -> anyhow::Result<Holds> {
@@ -614,11 +614,17 @@ fn measure_mechanics<P: std::io::Read + Write>(
                 })?;
                 link.done(probe.command())?;
                 let c = read_capture(link, span, 1, rate_hz)?;
+                // A fault during a probe ends the holds, named, as one during a window.
                 readings(&c)?;
                 probes[k].push(
                     c.samples
                         .iter()
-                        .map(|s| (f64::from(s.x_m), f64::from(s.u_v), f64::from(s.i_a)))
+                        .map(|s| crate::commissioning::ProbeSample {
+                            y_m: f64::from(s.x_m),
+                            u_v: f64::from(s.u_v),
+                            i_a: f64::from(s.i_a),
+                            vbus_v: f64::from(s.vbus_v),
+                        })
                         .collect(),
                 );
             }
@@ -685,7 +691,8 @@ fn measure_mechanics<P: std::io::Read + Write>(
                 sig(x * 1e3, 4)
             ),
             None => format!(
-                "not read at the hold at {} mm (spread above {} %)",
+                "not read at the hold at {} mm (the current did not step, or the probes \
+                 spread above {} %)",
                 sig(f * stroke_m * 1e3, 3),
                 100.0 * crate::commissioning::HOLD_PROBE_MAX_SPREAD
             ),

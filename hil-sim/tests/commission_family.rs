@@ -254,7 +254,7 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                             100.0 * e,
                             100.0 * spread / l
                         );
-                        assert!(e.abs() < 0.05, "{name}: hold {k}: {e}; {draw:?}");
+                        assert!(e.abs() < 0.025, "{name}: hold {k}: {e}; {draw:?}");
                     }
                     (m.spring, m.armature)
                 }
@@ -368,6 +368,35 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
         let (still, _) = read_with(0.0, r);
         eprintln!("  the motion left in: {:+.2} %", 100.0 * (still / l - 1.0));
         assert!(still / l - 1.0 < -0.02, "{periods}: {still} against {l}");
+    }
+}
+
+/// A valve whose magnet is 29 % weaker than its file's, on a coil 24 % above its
+/// resistance and a spring 29 % stiffer: near the open stop its coil's time constant is
+/// about one period, and the bus sags behind the supply's resistance as the hold's large
+/// current steps. The holds' probes read every hold within 2 % of the plant's inductance
+/// (left in, the sag read the one near the open stop 4 % high).
+#[test]
+fn a_weak_magnet_on_a_resistive_coil_has_its_holds_read_within_two_percent() {
+    let (_, a) = hil_sim::actuator::load("valve").unwrap();
+    let draw = hil_sim::commissioning::Draw {
+        factors: [0.71, 1.24, 1.29, 0.79, 1.2],
+        preload_share: 0.0,
+        gain_error: 0.0,
+        offset_share: 0.0,
+        noise_seed: 144,
+    };
+    let report = hil_sim::commissioning::run(&a, Some(&draw))
+        .unwrap()
+        .report
+        .unwrap();
+    let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
+    let m = hil_sim::commissioning::mechanics(&a, &report, &plant, Some(&draw))
+        .unwrap()
+        .unwrap();
+    for (k, e) in m.inductance_errors(&plant).into_iter().enumerate() {
+        eprintln!("hold {k}: {:+.2} %", 100.0 * e);
+        assert!(e.abs() < 0.02, "hold {k}: {e}");
     }
 }
 

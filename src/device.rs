@@ -1356,11 +1356,7 @@ impl Dispatcher {
                     Err(e) => self.reply(seq, Reply::Refused(Refusal::Invalid(Invalid::from(e)))),
                     Ok(_) => self.order(
                         seq,
-                        Order::Probe(control::Probe {
-                            amplitude_a,
-                            half_ticks,
-                            ticks_left: u32::from(half_ticks).saturating_mul(2 * u32::from(cycles)),
-                        }),
+                        Order::Probe(control::Probe::new(amplitude_a, half_ticks, cycles)),
                         then,
                         ends,
                     ),

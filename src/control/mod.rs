@@ -210,6 +210,16 @@ pub struct Probe {
 }
 
 impl Probe {
+    /// A probe of `cycles` cycles, `half_ticks` at each level, `+-amplitude_a`, started.
+    #[must_use]
+    pub fn new(amplitude_a: f32, half_ticks: u16, cycles: u16) -> Self {
+        Self {
+            amplitude_a,
+            half_ticks,
+            ticks_left: u32::from(half_ticks).saturating_mul(2 * u32::from(cycles)),
+        }
+    }
+
     /// What the probe adds to the desired current at this tick \[A\], and one tick on.
     fn next(&mut self) -> f32 {
         let Some(left) = self.ticks_left.checked_sub(1) else {

@@ -96,18 +96,14 @@ impl InductanceProbe {
     /// Ticks it runs.
     #[must_use]
     pub fn ticks(&self) -> usize {
-        2 * usize::from(self.cycles) * usize::from(self.half_ticks)
+        self.start().ticks_left as usize
     }
 
     /// The controller's probe, started (as the board starts it on [`Self::command`]).
     #[must_use]
     #[allow(clippy::cast_possible_truncation)]
     pub fn start(&self) -> ema::control::Probe {
-        ema::control::Probe {
-            amplitude_a: self.amplitude_a as f32,
-            half_ticks: self.half_ticks,
-            ticks_left: u32::from(self.half_ticks).saturating_mul(2 * u32::from(self.cycles)),
-        }
+        ema::control::Probe::new(self.amplitude_a as f32, self.half_ticks, self.cycles)
     }
 
     /// The board's command that starts it.

@@ -132,9 +132,10 @@ pub struct CommissionArgs {
     /// Longest wait for the result (s).
     #[arg(long, default_value_t = 60.0)]
     pub timeout_s: f64,
-    /// Writes the board's actuator file with the measured resistance and inductances in
-    /// it (the magnetic circuit in its two-inductance form), each value's uncertainty and
-    /// the end stops in its head: the file `hil-sim tune` takes.
+    /// Writes the board's actuator file with the measured resistance and magnetic circuit
+    /// in it (the stops' two inductances, or with `--mechanics` the circuit fitted to them
+    /// and the holds', in the board's form), each value's uncertainty and the end stops in
+    /// its head: the file `hil-sim tune` takes.
     #[arg(long)]
     pub out: Option<std::path::PathBuf>,
 }
@@ -497,14 +498,15 @@ pub fn commission<P: std::io::Read + Write>(
     Ok(report)
 }
 
-/// Measures the spring, the mass and the friction on the board
-/// ([`crate::commissioning::fit_spring`], [`crate::commissioning::fit_armature`]): sets
+/// Measures the magnetic circuit between the stops, the spring, the mass and the friction
+/// on the board ([`crate::commissioning::Circuit::fit`],
+/// [`crate::commissioning::fit_spring`], [`crate::commissioning::fit_armature`]): sets
 /// the actuator `report` measured on the board's `file` with the default tuning (not
 /// stored), arms, moves to each position of [`crate::actuator::SEQUENCE`] and holds it as
-/// the evaluation sequence does, capturing the move and then the hold's window at the
-/// [`crate::commissioning::decimations`], disarms and puts the parameters in use before
-/// back (the stored set, or the built-in defaults). A fault during the holds ends it,
-/// named.
+/// the evaluation sequence does, capturing the move, then the hold's window at the
+/// [`crate::commissioning::decimations`], then the hold's inductance probes at every
+/// tick; disarms and puts the parameters in use before back (the stored set, or the
+/// built-in defaults). A fault during the holds ends it, named.
 ///
 /// # Errors
 /// A refusal, no reply, a fault during the holds, a capture that does not finish.
@@ -642,11 +644,51 @@ fn measure_mechanics<P: std::io::Read + Write>(
     let holds = holds?;
     disarmed?;
     loaded?;
+    let inductances = probes.each_ref().map(|runs| {
+        crate::commissioning::hold_inductance(runs, &probe, delay, 1.0 / rate_hz, report, stroke_m)
+    });
+    for (f, l) in crate::actuator::SEQUENCE.iter().zip(&inductances) {
+        let line = match l {
+            Some((x, l, spread)) => format!(
+                "{} uH +- {} at {} mm",
+                sig(l * 1e6, 4),
+                sig(spread * 1e6, 2),
+                sig(x * 1e3, 4)
+            ),
+            None => format!(
+                "not read at the hold at {} mm (the current did not step, or the probes \
+                 spread above {} %)",
+                sig(f * stroke_m * 1e3, 3),
+                100.0 * crate::commissioning::HOLD_PROBE_MAX_SPREAD
+            ),
+        };
+        writeln!(out, "  inductance {line}")?;
+    }
+    let mechanics = Mechanics::fit(report, file, &holds, inductances);
+    let c = mechanics.circuit;
+    let n2 = f64::from(file.coil.turns).powi(2);
+    let growth = if c.growth_per_m == 0.0 {
+        "constant over the stroke (no growth beyond the readings' noise)".to_owned()
+    } else {
+        format!(
+            "growing {} % from the closed stop to the open one",
+            sig(100.0 * (c.surface_growth() - 1.0), 3)
+        )
+    };
+    writeln!(
+        out,
+        "circuit fitted to the six inductances: rho_0 {} 1/H, rho_x {} 1/(H m) at a closed gap \
+         ({} turns), the airgap's surface {growth}; within {} % of the holds' inductances",
+        sig(c.iron_per_h * n2, 4),
+        sig(c.gap_per_h_m * n2, 4),
+        file.coil.turns,
+        sig(100.0 * c.deviation(&inductances).unwrap_or(f64::NAN), 2)
+    )?;
     let Mechanics {
         spring: s,
         armature,
         ..
-    } = Mechanics::fit(report, stroke_m, &holds);
+    } = mechanics;
     for (x, f) in s.holds {
         writeln!(
             out,
@@ -679,31 +721,7 @@ fn measure_mechanics<P: std::io::Read + Write>(
             "mass and friction not measured: every move came near a stop; the file's kept"
         )?,
     }
-    let inductances = probes.each_ref().map(|runs| {
-        crate::commissioning::hold_inductance(runs, &probe, delay, 1.0 / rate_hz, report, stroke_m)
-    });
-    for (f, l) in crate::actuator::SEQUENCE.iter().zip(&inductances) {
-        let line = match l {
-            Some((x, l, spread)) => format!(
-                "{} uH +- {} at {} mm",
-                sig(l * 1e6, 4),
-                sig(spread * 1e6, 2),
-                sig(x * 1e3, 4)
-            ),
-            None => format!(
-                "not read at the hold at {} mm (the current did not step, or the probes \
-                 spread above {} %)",
-                sig(f * stroke_m * 1e3, 3),
-                100.0 * crate::commissioning::HOLD_PROBE_MAX_SPREAD
-            ),
-        };
-        writeln!(out, "  inductance {line}")?;
-    }
-    Ok(Mechanics {
-        spring: s,
-        armature,
-        inductances,
-    })
+    Ok(mechanics)
 }
 
 /// How near the open stop's reading, as a share of the stroke, the armature must read on
@@ -713,25 +731,23 @@ const SPRING_START_SHARE: f32 = 0.01;
 /// Drawn plants `commission --tune` validates the tuning on.
 const TUNE_VALIDATION_DRAWS: usize = 100;
 
-/// The parameters that carry a commissioned actuator `measured` (its magnetic circuit in
-/// the two-inductance form) on a board whose file is `board`: the resistance, the spring
-/// and its preload, the mass and the friction with their tolerances, and the magnetic
-/// circuit in the board's own form (its kind is fixed by the firmware build).
-/// In the geometry form without spread, `1/L` is linear in the gap as in the measured
-/// one: the pole's sides are scaled for the measured airgap reluctance (the fringing
-/// coefficient kept) and the iron's reluctance set to the measured one.
+/// The parameters that carry a commissioned actuator `measured` on a board whose file is
+/// `board`: the resistance, the spring and its preload, the mass and the friction with
+/// their tolerances, and the magnetic circuit in the board's own form (its kind is fixed
+/// by the firmware build). A circuit measured in the board's form is carried as it is;
+/// one in the two-inductance form (the stops' alone) on a board with a pole geometry
+/// without spread, whose `1/L` is linear in the gap as the measured one's, has the pole's
+/// sides scaled for the measured airgap reluctance (the fringing coefficient kept) and
+/// the iron's reluctance set to the measured one.
 ///
 /// # Errors
-/// A board whose circuit has a fringing spread (its `1/L` is not linear in the gap, so
-/// two inductances do not fix it), or a measured circuit that is not in the two-inductance
-/// form.
+/// A two-inductance circuit for a board whose geometry has a fringing spread (its `1/L`
+/// is not linear in the gap, so two inductances do not fix it), or a circuit in the
+/// geometry form for a board in the two-inductance form.
 pub fn commissioned_params(
     board: &Actuator,
     measured: &Actuator,
 ) -> anyhow::Result<Vec<(&'static str, f32)>> {
-    let Magnetics::Inductance { open_h, closed_h } = measured.magnetics else {
-        bail!("the commissioned actuator's circuit is not in the two-inductance form")
-    };
     let mut out = vec![
         ("coil.resistance_ohm", measured.coil.resistance_ohm),
         (
@@ -747,24 +763,45 @@ pub fn commissioned_params(
         ("tolerance.mass", measured.tolerance.mass),
         ("tolerance.friction", measured.tolerance.friction),
     ];
-    match board.magnetics {
-        Magnetics::Inductance { .. } => {
+    match (board.magnetics, measured.magnetics) {
+        (Magnetics::Inductance { .. }, Magnetics::Inductance { open_h, closed_h }) => {
             out.push(("magnetics.inductance.open_h", open_h));
             out.push(("magnetics.inductance.closed_h", closed_h));
         }
-        Magnetics::Geometry {
-            gaps,
-            pole_a_m,
-            pole_b_m,
-            fringing_coefficient,
-            fringing_spread,
-            ..
-        } => {
+        (
+            Magnetics::Geometry { .. },
+            Magnetics::Geometry {
+                pole_a_m,
+                pole_b_m,
+                fringing_spread,
+                iron_reluctance_per_h,
+                ..
+            },
+        ) => {
+            out.push(("magnetics.geometry.pole_a_m", pole_a_m));
+            out.push(("magnetics.geometry.pole_b_m", pole_b_m));
+            out.push(("magnetics.geometry.fringing_spread", fringing_spread));
+            out.push((
+                "magnetics.geometry.iron_reluctance_per_h",
+                iron_reluctance_per_h,
+            ));
+        }
+        (
+            Magnetics::Geometry {
+                gaps,
+                pole_a_m,
+                pole_b_m,
+                fringing_coefficient,
+                fringing_spread,
+                ..
+            },
+            Magnetics::Inductance { .. },
+        ) => {
             ensure!(
                 fringing_spread == 0.0,
                 "the board's magnetics.geometry.fringing_spread = {fringing_spread}: its 1/L is \
                  not linear in the gap and two inductances do not fix it; commission with the \
-                 circuit in the two-inductance form"
+                 holds measured (--mechanics), whose fit gives the spread"
             );
             // The measured circuit in the model's form: `rho_x` constant over the gap.
             let circuit = measured
@@ -779,6 +816,10 @@ pub fn commissioned_params(
             out.push(("magnetics.geometry.pole_b_m", scale * pole_b_m));
             out.push(("magnetics.geometry.iron_reluctance_per_h", rho_0));
         }
+        (Magnetics::Inductance { .. }, Magnetics::Geometry { .. }) => bail!(
+            "the commissioned circuit is in the geometry form and the board's in the \
+             two-inductance form"
+        ),
     }
     Ok(out)
 }
@@ -900,8 +941,14 @@ pub fn actuator_file(
             Some(d) => format!(
                 "#   inductance at the holds (probes, loop closed; two standard errors):\n\
                  #     {}\n\
-                 #   the circuit below is within {} % of them (tolerance.surface = {})\n",
+                 #   the circuit below is fitted to them and the stops' (surface growth \
+                 q = {} 1/m,\n\
+                 #   the surface at the open stop {} % above the closed stop's); within {} % \
+                 of the holds'\n\
+                 #   (tolerance.surface = {})\n",
                 probed.join(", "),
+                sig(m.circuit.growth_per_m, 3),
+                sig(100.0 * (m.circuit.surface_growth() - 1.0), 3),
                 sig(100.0 * d, 2),
                 a.tolerance.surface
             ),
@@ -915,23 +962,24 @@ pub fn actuator_file(
             sig(s.preload_n, 4)
         )
     });
+    let moved = if moved == 1.0 {
+        String::new()
+    } else {
+        format!(
+            "#   in the file's linear form each moved by {:.2} % (positive iron reluctance)\n",
+            100.0 * (moved - 1.0).abs()
+        )
+    };
     let head = format!(
         "# Commissioned on the board (loop open, armature at rest):\n\
          #   coil.resistance_ohm = {} +- {} (two standard errors, converter noise)\n\
-         #   inductance at the open stop {} H, at the closed stop {} H (step responses);\n\
-         #   in the file's linear form each moved by {:.2} % (positive iron reluctance)\n\
+         #   inductance at the open stop {} H, at the closed stop {} H (step responses)\n\
+         {moved}\
          #   position reading at the open stop {} m, at the closed stop {} m +- {} m\n\
          #   (in the calibration of this file's board.position_span_m)\n\
          {spring_head}\
          # Tune it before use: hil-sim tune <this file>\n",
-        r.ohm,
-        r.spread_ohm,
-        l.open_h,
-        l.closed_h,
-        100.0 * (moved - 1.0).abs(),
-        e.open_m,
-        e.closed_m,
-        e.spread_m
+        r.ohm, r.spread_ohm, l.open_h, l.closed_h, e.open_m, e.closed_m, e.spread_m
     );
     Ok(head + &toml::to_string(&a)?)
 }

@@ -38,7 +38,7 @@ const QUANTITIES: [(&str, f64); 6] = [
     ("resistance error [%]", 2.0),
     ("inductance error, open stop [%]", 5.0),
     ("inductance error, closed stop [%]", 5.0),
-    ("inductance error over the stroke [%]", 5.0),
+    ("inductance error over the stroke, stops' line [%]", 5.0),
     ("open stop reading error [codes]", 2.0),
     ("closed stop reading error [codes]", 2.0),
 ];
@@ -76,6 +76,10 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                     .inductance_errors(&plant)
                     .iter()
                     .fold(0.0, |w, e| crate::targets::worse(w, e.abs()));
+                // The circuit the file written with the holds carries.
+                let fitted = commissioning::measured(&a, &r, Some(&m))
+                    .and_then(|(f, _)| commissioning::curve_error(&f, &plant))
+                    .unwrap_or(f64::NAN);
                 [
                     m.spring.n_per_m / plant.spring_n_per_m - 1.0,
                     (m.spring.preload_n - plant.preload_n)
@@ -84,6 +88,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                     friction,
                     friction * plant.friction_n_s_per_m / critical,
                     held,
+                    fitted,
                 ]
             });
             let closed = if args.tune {
@@ -154,7 +159,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         row(&mut t, what, v, Some(*target));
     }
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut mechanics: Vec<[f64; 6]> = Vec::new();
+    let mut mechanics: Vec<[f64; 7]> = Vec::new();
     for s in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
         match s {
             Ok(e) => mechanics.push(*e),
@@ -171,6 +176,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             Some(100.0 * commissioning::FRICTION_CLASS_DAMPING),
         ),
         ("inductance error at the holds [%]", Some(5.0)),
+        ("inductance error over the stroke, fitted [%]", Some(5.0)),
     ]
     .into_iter()
     .enumerate()

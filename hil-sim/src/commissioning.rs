@@ -321,8 +321,8 @@ impl Mechanics {
     /// The magnetic circuit from the stops' inductances (the commissioning's `report`)
     /// and the holds' `inductances` ([`Circuit::fit`], for the actuator file `a`), and
     /// with its pull the spring from the `holds`' windows ([`fit_spring`]), the mass and
-    /// the friction from their moves ([`fit_armature`]). When a hold is not at rest ([`REST_SHARE`]),
-    /// the spring's rate is corrected by what the moves read it missed
+    /// the friction from their moves ([`fit_armature`]). When a hold is not at rest
+    /// ([`REST_SHARE`]), the spring's rate is corrected by what the moves read it missed
     /// ([`Armature::stiffness_n_per_m`]), its line turned about the holds' mean: a loop
     /// that limit-cycles about its holds reads the rate from their mean positions and
     /// pulls up to a third off, where the moves' dynamics read it within a few per cent.

@@ -336,8 +336,20 @@ impl Mechanics {
     ) -> Self {
         let circuit = Circuit::fit(report, a, &inductances);
         let stroke_m = circuit.stroke_m;
-        let mut spring = fit_spring(report, circuit, &holds.windows);
-        let armature = fit_armature(report, circuit, &spring, holds);
+        let dt_s = holds.window_dt_s;
+        // The moves read the mass and the friction with the spring the windows read
+        // without them; the windows again with them.
+        let mut spring = fit_spring(report, circuit, &holds.windows, dt_s, None);
+        let armature = fit_armature(report, circuit, &spring, holds).and_then(|arm| {
+            spring = fit_spring(
+                report,
+                circuit,
+                &holds.windows,
+                dt_s,
+                Some((arm.mass_kg, arm.friction_n_s_per_m)),
+            );
+            fit_armature(report, circuit, &spring, holds)
+        });
         let force = pull(report, circuit);
         #[allow(clippy::cast_precision_loss)]
         let restless = holds.windows.iter().any(|w| {
@@ -376,8 +388,11 @@ pub struct Holds {
     pub moves: [Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()],
     /// Time between the moves' samples \[s\].
     pub move_dt_s: f64,
-    /// Each hold's window at rest: its last [`HOLD_WINDOW_SHARE`].
+    /// Each hold's window, once the move has settled: its last [`HOLD_WINDOW_SHARE`],
+    /// one sample every `window_dt_s`.
     pub windows: [Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()],
+    /// Time between the windows' samples \[s\].
+    pub window_dt_s: f64,
 }
 
 /// The capture decimations of the holds with `settings` over `stroke_m` at `rate_hz`:
@@ -503,6 +518,7 @@ pub fn mechanics(
             capture(k * hold_ticks, hold_ticks - window_ticks, move_decimation)
         }),
         move_dt_s: f64::from(move_decimation) / rate,
+        window_dt_s: f64::from(window_decimation) / rate,
         windows: core::array::from_fn(|k| {
             capture(
                 (k + 1) * hold_ticks - window_ticks,
@@ -513,6 +529,7 @@ pub fn mechanics(
     };
     // A probe that latched a fault, or ran after one, reads nothing.
     let faulted_at = probed.samples.iter().position(|s| s.fault.is_some());
+    let line = Circuit::through_stops(report, a);
     let inductances = core::array::from_fn(|k| {
         let end = probe_at(k, HOLD_PROBE_RUNS - 1) + span;
         if faulted_at.is_some_and(|f| f < end) {
@@ -533,7 +550,7 @@ pub fn mechanics(
                 )
             })
             .collect::<Option<Vec<_>>>()?;
-        hold_inductance(&runs, &probe, delay, 1.0 / rate, report, stroke_m)
+        hold_inductance(&runs, &probe, delay, 1.0 / rate, report, line)
     });
     Ok(Ok(Mechanics::fit(report, a, &holds, inductances)))
 }
@@ -723,8 +740,10 @@ pub struct ProbeSample {
 
 /// One hold's inductance from its probes' captures (the board's samples at every tick
 /// from each probe's first), read with [`probe_inductance`] for the `probe`, the
-/// converter `delay` ticks late, the period `ts_s`: the mean position corrected with the
-/// end stops the `report` measured, `x = stroke (y - y_open) / (y_closed - y_open)`, the
+/// converter `delay` ticks late, the period `ts_s`, the commissioning's `report` and the
+/// `line` through its stops' inductances ([`Circuit::through_stops`]): the mean position
+/// corrected with the end stops the `report` measured, `x = stroke (y - y_open) /
+/// (y_closed - y_open)`, the
 /// inductance and two standard errors of it; `None` when the probes read nothing or
 /// their spread exceeds [`HOLD_PROBE_MAX_SPREAD`]. The same reading on the bench and in
 /// [`mechanics`].
@@ -738,8 +757,8 @@ pub struct ProbeSample {
 /// - **The armature's motion.** The probe's pull steps the armature back and forth by
 ///   micrometres, and the flux it moves, `i L'(x) dx`, comes with the current's steps in
 ///   antiphase: near the closed stop, where `L'` is large, it read the valves' holds 2 %
-///   low. It is taken out with the hold's current, the position readings and the slope
-///   of the stops' two-point line, `L' = L^2 s`.
+///   low. It is taken out with the hold's current, the position readings and the
+///   `line`'s `L'`.
 #[must_use]
 #[allow(clippy::cast_precision_loss)]
 pub fn hold_inductance(
@@ -748,10 +767,10 @@ pub fn hold_inductance(
     delay: usize,
     ts_s: f64,
     report: &Report,
-    stroke_m: f64,
+    line: Circuit,
 ) -> Option<(f64, f64, f64)> {
     let ticks = probe.ticks();
-    let position = corrected(report, stroke_m);
+    let position = corrected(report, line.stroke_m);
     let split: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = runs
         .iter()
         .map(|s| {
@@ -782,12 +801,10 @@ pub fn hold_inductance(
             (n + 1.0, i + q.i_a, y + q.y_m)
         });
     let x = position(y_sum / n);
-    let slope = pull_slope(report, stroke_m);
-    let l_line = 1.0 / (1.0 / f64::from(report.inductance.closed_h) + (stroke_m - x) * slope);
     let r_ohm = f64::from(report.resistance.ohm);
     let (l, spread) = probe_inductance(
         &slices,
-        (i_sum / n) * l_line * l_line * slope / r_ohm,
+        (i_sum / n) * line.force_coefficient_h_per_m(x) / r_ohm,
         usize::from(probe.half_ticks),
         delay,
         ts_s,
@@ -797,29 +814,49 @@ pub fn hold_inductance(
 }
 
 /// The spring's rate and preload from the readings `(position [m], current [A])` of each
-/// hold's window (the armature at rest, the loop holding it), the commissioning's
-/// `report` and the magnetic `circuit` measured.
+/// hold's window (the loop holding the armature), one every `dt_s`, the commissioning's
+/// `report`, the magnetic `circuit` measured and, once the moves have read them, the
+/// armature's mass and friction (`dynamics`, `(m [kg], c [N s/m])`).
 ///
-/// At rest the magnet's pull equals the spring's, `K x + F0`. The pull is
-/// `F = i^2 L'(x) / 2` with the `circuit` measured ([`Circuit::fit`]). Each reading's
-/// position is corrected with the measured end stops, `x = stroke (y - y_open) /
-/// (y_closed - y_open)`, the force is averaged reading by reading over each window, and
-/// `K` and `F0` are the least squares line through the holds.
+/// The pull is `F = i^2 L'(x) / 2` with the `circuit` measured ([`Circuit::fit`]). Each
+/// reading's position is corrected with the measured end stops, `x = stroke (y - y_open)
+/// / (y_closed - y_open)`. Each window's force and position are averaged reading by
+/// reading with a weight that vanishes at both ends, `w(t) = sin^2(pi t / T)`: over the
+/// window the equation of motion averages to `<F> - m <a> - c <v> = K <x> + F0`, and by
+/// parts `<a> = <w'' x>` and `<v> = -<w' x>` (w and w' vanish at the ends), read from the
+/// positions alone, without differencing their noise. A loop that limit-cycles about a
+/// hold does not end its window at the speed it started it: a 1 kg plunger's hold near
+/// its closed stop, a tenth of a cycle past a whole one, read the pull 1 % above the
+/// spring without these terms, and the rate 5.8 % off. `K` and `F0` are the least
+/// squares line through the holds.
 #[must_use]
 pub fn fit_spring(
     report: &Report,
     circuit: Circuit,
     holds: &[Vec<(f64, f64)>; crate::actuator::SEQUENCE.len()],
+    dt_s: f64,
+    dynamics: Option<(f64, f64)>,
 ) -> Spring {
+    use core::f64::consts::PI;
     let force = pull(report, circuit);
+    let (mass_kg, friction) = dynamics.unwrap_or((0.0, 0.0));
     let means = holds.each_ref().map(|w| {
-        let (sx, sf) = w.iter().fold((0.0, 0.0), |(sx, sf), &(y, i)| {
-            let (x, f) = force(y, i);
-            (sx + x, sf + f)
-        });
         #[allow(clippy::cast_precision_loss)]
         let n = w.len() as f64;
-        (sx / n, sf / n)
+        let rate = PI / (n * dt_s);
+        let (sw, sx, sf, sa, sv) = w.iter().enumerate().fold(
+            (0.0, 0.0, 0.0, 0.0, 0.0),
+            |(sw, sx, sf, sa, sv), (k, &(y, i))| {
+                let (x, f) = force(y, i);
+                #[allow(clippy::cast_precision_loss)]
+                let phase = PI * (k as f64 + 0.5) / n;
+                let w = phase.sin().powi(2);
+                let w1 = rate * (2.0 * phase).sin();
+                let w2 = 2.0 * rate * rate * (2.0 * phase).cos();
+                (sw + w, sx + w * x, sf + w * f, sa + w2 * x, sv - w1 * x)
+            },
+        );
+        (sx / sw, (sf - mass_kg * sa - friction * sv) / sw)
     });
     #[allow(clippy::cast_precision_loss)]
     let n = means.len() as f64;
@@ -851,14 +888,6 @@ fn pull(report: &Report, circuit: Circuit) -> impl Fn(f64, f64) -> (f64, f64) {
         let x = position(y);
         (x, 0.5 * i * i * circuit.force_coefficient_h_per_m(x))
     }
-}
-
-/// The slope `s` of `1/L` against the position through the two inductances the
-/// commissioning's `report` measured at the stops, over `stroke_m` \[1/(H m)\]: `1/L`
-/// falls by `s` per metre towards the closed stop, `dL/dx = L^2 s`.
-fn pull_slope(report: &Report, stroke_m: f64) -> f64 {
-    (1.0 / f64::from(report.inductance.open_h) - 1.0 / f64::from(report.inductance.closed_h))
-        / stroke_m
 }
 
 /// The position \[m\] of a reading `y` \[m\] corrected with the end stops the

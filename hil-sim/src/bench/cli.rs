@@ -583,6 +583,7 @@ fn measure_mechanics<P: std::io::Read + Write>(
         link.done(Command::Arm)?;
         let mut holds = Holds {
             move_dt_s: f64::from(move_decimation) / rate_hz,
+            window_dt_s: f64::from(window_decimation) / rate_hz,
             ..Holds::default()
         };
         let readings = |c: &Capture| -> anyhow::Result<Vec<(f64, f64)>> {
@@ -644,8 +645,9 @@ fn measure_mechanics<P: std::io::Read + Write>(
     let holds = holds?;
     disarmed?;
     loaded?;
+    let line = crate::commissioning::Circuit::through_stops(report, &m);
     let inductances = probes.each_ref().map(|runs| {
-        crate::commissioning::hold_inductance(runs, &probe, delay, 1.0 / rate_hz, report, stroke_m)
+        crate::commissioning::hold_inductance(runs, &probe, delay, 1.0 / rate_hz, report, line)
     });
     for (f, l) in crate::actuator::SEQUENCE.iter().zip(&inductances) {
         let line = match l {

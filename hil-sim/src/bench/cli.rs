@@ -789,15 +789,10 @@ pub fn commissioned_params(
             ));
         }
         (
-            Magnetics::Geometry {
-                gaps,
-                pole_a_m,
-                pole_b_m,
-                fringing_coefficient,
-                fringing_spread,
-                ..
+            file @ Magnetics::Geometry {
+                fringing_spread, ..
             },
-            Magnetics::Inductance { .. },
+            Magnetics::Inductance { open_h, closed_h },
         ) => {
             ensure!(
                 fringing_spread == 0.0,
@@ -805,18 +800,26 @@ pub fn commissioned_params(
                  not linear in the gap and two inductances do not fix it; commission with the \
                  holds measured (--mechanics), whose fit gives the spread"
             );
-            // The measured circuit in the model's form: `rho_x` constant over the gap.
-            let circuit = measured
-                .plant()
-                .map_err(|e| anyhow!("the measured actuator: {e}"))?
-                .magnetics;
-            let (rho_x, rho_0) = (circuit.rho_x_per_h_m(0.0), circuit.rho0_per_h);
-            // rho_x = gaps / (mu0 alpha a b): the surface the measured rho_x asks.
-            let surface = gaps / (ema::model::MU0_H_PER_M * rho_x);
-            let scale = (surface / (fringing_coefficient * pole_a_m * pole_b_m)).sqrt();
-            out.push(("magnetics.geometry.pole_a_m", scale * pole_a_m));
-            out.push(("magnetics.geometry.pole_b_m", scale * pole_b_m));
-            out.push(("magnetics.geometry.iron_reluctance_per_h", rho_0));
+            // The measured line in the board's form.
+            let line = crate::commissioning::Circuit::line(
+                f64::from(open_h),
+                f64::from(closed_h),
+                measured,
+            );
+            if let Magnetics::Geometry {
+                pole_a_m,
+                pole_b_m,
+                iron_reluctance_per_h,
+                ..
+            } = line.geometry(measured.coil.turns, file)
+            {
+                out.push(("magnetics.geometry.pole_a_m", pole_a_m));
+                out.push(("magnetics.geometry.pole_b_m", pole_b_m));
+                out.push((
+                    "magnetics.geometry.iron_reluctance_per_h",
+                    iron_reluctance_per_h,
+                ));
+            }
         }
         (Magnetics::Inductance { .. }, Magnetics::Geometry { .. }) => bail!(
             "the commissioned circuit is in the geometry form and the board's in the \
@@ -1570,6 +1573,46 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A commissioning without the holds measures two inductances; a board whose file
+    /// gives a pole geometry gets them as its sides and iron: the board's circuit then
+    /// has the measured inductances at both stops, within 1e-5.
+    #[test]
+    fn two_measured_inductances_reach_a_geometry_board_as_its_sides_and_iron() {
+        let board = Actuator::PRODUCT;
+        let nominal = board.plant().unwrap();
+        let at = |p: &ema::model::Plant, x: f32| p.magnetics.inductance_h(p.gap_m(x));
+        let stroke = board.mechanics.stroke_m;
+        let measured = Actuator {
+            magnetics: Magnetics::Inductance {
+                open_h: 1.1 * at(&nominal, 0.0),
+                closed_h: 0.95 * at(&nominal, stroke),
+            },
+            ..board
+        };
+        let mut got = board;
+        for (name, value) in commissioned_params(&board, &measured).unwrap() {
+            if let Magnetics::Geometry {
+                pole_a_m,
+                pole_b_m,
+                iron_reluctance_per_h,
+                ..
+            } = &mut got.magnetics
+            {
+                match name {
+                    "magnetics.geometry.pole_a_m" => *pole_a_m = value,
+                    "magnetics.geometry.pole_b_m" => *pole_b_m = value,
+                    "magnetics.geometry.iron_reluctance_per_h" => *iron_reluctance_per_h = value,
+                    _ => {}
+                }
+            }
+        }
+        let (want, have) = (measured.plant().unwrap(), got.plant().unwrap());
+        for x in [0.0, stroke] {
+            let error = at(&have, x) / at(&want, x) - 1.0;
+            assert!(error.abs() < 1e-5, "at {x} m: {error}");
+        }
+    }
 
     #[test]
     fn the_virtual_boards_mechanics_injection_takes_four_numbers_and_refuses_a_massless_one() {

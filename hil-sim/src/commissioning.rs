@@ -24,11 +24,12 @@
 //! and, with it, the mass and the friction from the moves ([`fit_armature`]): the same
 //! fits on the bench and here. The file written carries the fitted circuit.
 //!
-//! The actuator file a commissioning writes ([`measured`]) carries, for the mass and the
-//! friction, the tolerance their measurement leaves ([`MASS_CLASS`],
-//! [`FRICTION_CLASS_DAMPING`]) rather than the datasheet's: `tune` then validates its
-//! gains on plants around what was measured, as far off as the measurement may be, and
-//! the controller's robust model is built on the same (the test
+//! The actuator file a commissioning writes ([`measured`]) carries, for the spring, the
+//! mass and the friction, the tolerance their measurement leaves ([`SPRING_CLASS`],
+//! [`MASS_CLASS`], [`FRICTION_CLASS_DAMPING`]) rather than the datasheet's, and for the
+//! surfaces the spread of the circuit's fit ([`SURFACE_CLASS`]): `tune` then validates
+//! its gains on plants around what was measured, as far off as the measurement may be,
+//! and the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).
 
 use ema::actuator::Actuator;
@@ -113,6 +114,17 @@ impl Draw {
 /// than its file, a damping ratio below 0.1), which the row counts.
 pub const MASS_CLASS: f64 = 0.08;
 
+/// How far the airgap surfaces of the circuit [`Circuit::fit`] reads may be off,
+/// relative: the inductance curve's target (the `hil-sim commission` table's rows of
+/// it), above its largest error over the family's drawn plants.
+pub const SURFACE_CLASS: f64 = 0.05;
+
+/// How far the spring's rate [`fit_spring`] reads may be off, relative (the `hil-sim
+/// commission` table's row of it, whose target this is): above the largest error over
+/// the family's drawn plants, once the holds' windows are averaged with the armature's
+/// inertia taken out.
+pub const SPRING_CLASS: f64 = 0.05;
+
 /// How far the friction [`fit_armature`] reads may be off, as a share of the critical
 /// damping `2 sqrt(K m)`: above the largest error over the family's drawn plants (the
 /// `hil-sim commission` table's row of it, whose target this is). Lightly damped
@@ -139,16 +151,15 @@ pub const IRON_SHARE: f32 = 1e-6;
 /// aspect kept), or the fitted circuit's inductances at the two stops. Without them, the
 /// stops' two inductances.
 ///
-/// A measured mass and friction carry the tolerance their measurement leaves, when it is
-/// below the file's: the mass [`MASS_CLASS`], the friction [`FRICTION_CLASS_DAMPING`] of
-/// the critical damping `2 sqrt(K m)` of the measured spring and mass (a datasheet's
-/// friction is an estimate, +-50 % by default; the moves read it to a few hundredths of
-/// the critical damping). The other tolerances stay the file's: the resistance moves with
-/// the coil's temperature, the surfaces are the paper's uncertainty (where the holds'
-/// probes read the circuit further from the written form than the file's surface
-/// tolerance, the tolerance widens to cover them: [`Mechanics::form_deviation`]), and the
-/// spring, read within 5 % on most drawn plants but not all (the `hil-sim commission`
-/// table), keeps the file's.
+/// A measured spring, mass and friction carry the tolerance their measurement leaves,
+/// when it is below the file's: the spring [`SPRING_CLASS`], the mass [`MASS_CLASS`], the
+/// friction [`FRICTION_CLASS_DAMPING`] of the critical damping `2 sqrt(K m)` of the
+/// measured spring and mass (a datasheet's friction is an estimate, +-50 % by default;
+/// the moves read it to a few hundredths of the critical damping). The surfaces, the
+/// paper's uncertainty, carry the spread of the circuit's fit: [`SURFACE_CLASS`], or the
+/// largest deviation of the written form from the holds' probes where that is larger
+/// ([`Mechanics::form_deviation`]), never more than the file's unless the probes ask for
+/// it. The resistance keeps the file's: it moves with the coil's temperature.
 ///
 /// The two-inductance form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the
 /// iron's `rho_0` positive. A real circuit's fringing bends the line (the surface grows
@@ -169,6 +180,7 @@ pub fn measured(
     if let Some(m) = mechanics {
         a.mechanics.spring_n_per_m = m.spring.n_per_m as f32;
         a.mechanics.preload_n = m.spring.preload_n as f32;
+        a.tolerance.spring = a.tolerance.spring.min(SPRING_CLASS as f32);
         if let Some(arm) = m.armature {
             a.mechanics.mass_kg = arm.mass_kg as f32;
             a.mechanics.friction_n_s_per_m = arm.friction_n_s_per_m.max(0.0) as f32;
@@ -216,9 +228,7 @@ pub fn measured(
     a.plant().map_err(Error::Actuator)?;
     #[allow(clippy::cast_possible_truncation)]
     if let Some(d) = mechanics.and_then(|m| m.form_deviation(&a)) {
-        if d > f64::from(a.tolerance.surface) {
-            a.tolerance.surface = d as f32;
-        }
+        a.tolerance.surface = a.tolerance.surface.min(SURFACE_CLASS as f32).max(d as f32);
     }
     Ok((a, moved))
 }

@@ -453,6 +453,18 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
         board.mechanics.spring_n_per_m,
         measured.mechanics.spring_n_per_m
     );
+    // With the tolerances the measurement leaves, on the board too: the spring's and the
+    // surfaces' classes (the circuit's fit read this one within its class).
+    assert_eq!(board.tolerance, measured.tolerance);
+    #[allow(clippy::cast_possible_truncation)]
+    let classes = (
+        hil_sim::commissioning::SPRING_CLASS as f32,
+        hil_sim::commissioning::SURFACE_CLASS as f32,
+    );
+    assert_eq!(
+        (measured.tolerance.spring, measured.tolerance.surface),
+        classes
+    );
     // The inductance at each of the four holds, from the board's probes: within 5 % of the
     // plant's at the hold's position.
     let sc = hil_sim::bench::board::scenario(&Actuator::PRODUCT, true).unwrap();

@@ -734,13 +734,13 @@ const SPRING_START_SHARE: f32 = 0.01;
 const TUNE_VALIDATION_DRAWS: usize = 100;
 
 /// The parameters that carry a commissioned actuator `measured` on a board whose file is
-/// `board`: the resistance, the spring and its preload, the mass and the friction with
-/// their tolerances, and the magnetic circuit in the board's own form (its kind is fixed
-/// by the firmware build). A circuit measured in the board's form is carried as it is;
-/// one in the two-inductance form (the stops' alone) on a board with a pole geometry
-/// without spread, whose `1/L` is linear in the gap as the measured one's, has the pole's
-/// sides scaled for the measured airgap reluctance (the fringing coefficient kept) and
-/// the iron's reluctance set to the measured one.
+/// `board`: the resistance, the spring and its preload, the mass and the friction, the
+/// tolerances of these and of the surfaces, and the magnetic circuit in the board's own
+/// form (its kind is fixed by the firmware build). A circuit measured in the board's form
+/// is carried as it is; one in the two-inductance form (the stops' alone) on a board with
+/// a pole geometry without spread, whose `1/L` is linear in the gap as the measured
+/// one's, has the pole's sides scaled for the measured airgap reluctance (the fringing
+/// coefficient kept) and the iron's reluctance set to the measured one.
 ///
 /// # Errors
 /// A two-inductance circuit for a board whose geometry has a fringing spread (its `1/L`
@@ -762,6 +762,8 @@ pub fn commissioned_params(
             "mechanics.friction_n_s_per_m",
             measured.mechanics.friction_n_s_per_m,
         ),
+        ("tolerance.surface", measured.tolerance.surface),
+        ("tolerance.spring", measured.tolerance.spring),
         ("tolerance.mass", measured.tolerance.mass),
         ("tolerance.friction", measured.tolerance.friction),
     ];
@@ -940,7 +942,14 @@ pub fn actuator_file(
             .inductances
             .iter()
             .flatten()
-            .map(|(x, l, spread)| format!("{} +- {} H at {} m", sig(*l, 4), sig(*spread, 2), sig(*x, 4)))
+            .map(|(x, l, spread)| {
+                format!(
+                    "{} +- {} H at {} m",
+                    sig(*l, 4),
+                    sig(*spread, 2),
+                    sig(*x, 4)
+                )
+            })
             .collect();
         let inductances = match m.form_deviation(&a) {
             Some(d) => format!(
@@ -961,10 +970,13 @@ pub fn actuator_file(
         };
         format!(
             "#   mechanics.spring_n_per_m = {} +- {} (two standard errors of the fit),\n\
-             #   mechanics.preload_n = {} (closed-loop holds at four positions)\n{armature}{inductances}",
+             #   mechanics.preload_n = {} (closed-loop holds at four positions),\n\
+             #   tolerance.spring = {} (the measurement's, where below the file's)\n\
+             {armature}{inductances}",
             sig(s.n_per_m, 4),
             sig(s.spread_n_per_m, 2),
-            sig(s.preload_n, 4)
+            sig(s.preload_n, 4),
+            sig(f64::from(a.tolerance.spring), 3)
         )
     });
     let moved = if moved == 1.0 {

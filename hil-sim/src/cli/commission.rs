@@ -167,7 +167,10 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         }
     }
     for (i, (what, target)) in [
-        ("spring rate error [%]", Some(5.0)),
+        (
+            "spring rate error [%]",
+            Some(100.0 * commissioning::SPRING_CLASS),
+        ),
         ("preload error [% of K x stroke]", None),
         ("mass error [%]", Some(100.0 * commissioning::MASS_CLASS)),
         ("friction error [%]", None),

@@ -122,7 +122,7 @@ pub struct CommissionArgs {
     pub tune: bool,
     /// Then measures the spring's rate and preload, the mass and the friction: the loop
     /// closed with the measured coil and circuit and the default tuning (for the holds
-    /// only, then put back), the armature moved to and held at 1/8, 7/8, 3/8 and 3/4 of
+    /// only, then put back; holds a monitor ends run again with gentler moves), the armature moved to and held at 1/8, 7/8, 3/8 and 3/4 of
     /// the stroke, the magnet's pull read from the captured current (the board drives the
     /// coil and the armature moves): the spring from the holds, the mass and the friction
     /// from the moves. `--out` writes them, `--tune` tunes for them and `--apply` sets
@@ -506,10 +506,13 @@ pub fn commission<P: std::io::Read + Write>(
 /// the evaluation sequence does, capturing the move, then the hold's window at the
 /// [`crate::commissioning::decimations`], then the hold's inductance probes at every
 /// tick; disarms and puts the parameters in use before back (the stored set, or the
-/// built-in defaults). A fault during the holds ends it, named.
+/// built-in defaults). A fault during the holds ends the attempt, named: the holds run
+/// again, cleared, with gentler moves ([`crate::commissioning::hold_tuning`]), up to
+/// [`crate::commissioning::HOLD_ATTEMPTS`] in all.
 ///
 /// # Errors
-/// A refusal, no reply, a fault during the holds, a capture that does not finish.
+/// A refusal, no reply, a fault during the last attempt at the holds, a capture that
+/// does not finish.
 fn measure_mechanics<P: std::io::Read + Write>(
     link: &mut Link<P>,
     file: &Actuator,
@@ -517,7 +520,6 @@ fn measure_mechanics<P: std::io::Read + Write>(
     out: &mut dyn Write,
 ) -> anyhow::Result<Mechanics> {
     let (m, _) = crate::commissioning::measured(file, report, None)?;
-    let tuning = m.tuning_or_default().map_err(|e| anyhow!("{e}"))?;
     let settings = m.settings().map_err(|e| anyhow!("{e}"))?;
     let stroke_m = f64::from(m.mechanics.stroke_m);
     let rate_hz = f64::from(m.board.rate_hz);
@@ -530,7 +532,6 @@ fn measure_mechanics<P: std::io::Read + Write>(
         / f64::from(window_decimation))
     .round()
     .clamp(1.0, f64::from(capacity))) as u16;
-    let sets = commissioned_sets(file, &m, &tuning)?;
     let probe = crate::commissioning::hold_probe(&m);
     let delay = usize::from(settings.delay_ticks);
     let span = u16::try_from(crate::commissioning::probe_capture(probe.ticks(), delay))
@@ -550,91 +551,114 @@ fn measure_mechanics<P: std::io::Read + Write>(
         probe.cycles,
         probe.half_ticks
     )?;
-    let mut probes: [Vec<Vec<crate::commissioning::ProbeSample>>; crate::actuator::SEQUENCE.len()] =
-        Default::default();
+    let mut probes: [Vec<Vec<crate::commissioning::ProbeSample>>; crate::actuator::SEQUENCE.len()];
     let stored = matches!(status(link)?.params, ema::protocol::Source::Stored);
-    let mut held = || -> anyhow::Result<Holds> {
-        for (name, value) in &sets {
-            link.done(Command::Set {
-                name,
-                value: *value,
-            })?;
-        }
-        // The holds start from the open stop, as the evaluation sequence does: the
-        // armature comes back there once the commissioning's last hold lets go.
-        let (open_m, still_m) = (
-            report.ends.open_m,
-            SPRING_START_SHARE * m.mechanics.stroke_m,
-        );
-        let deadline = Instant::now() + Duration::from_secs(10);
-        let mut near = 0;
-        while near < 5 {
-            ensure!(
-                Instant::now() < deadline,
-                "the armature did not come back to the open stop within 10 s"
-            );
-            near = if (status(link)?.x_m - open_m).abs() < still_m {
-                near + 1
-            } else {
-                0
-            };
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        link.done(Command::Arm)?;
-        let mut holds = Holds {
-            move_dt_s: f64::from(move_decimation) / rate_hz,
-            window_dt_s: f64::from(window_decimation) / rate_hz,
-            ..Holds::default()
-        };
-        let readings = |c: &Capture| -> anyhow::Result<Vec<(f64, f64)>> {
-            if let Some(s) = c.samples.iter().find(|s| s.fault != 0) {
-                bail!("fault {} latched during the holds", fault_name(s.fault));
-            }
-            Ok(c.samples
-                .iter()
-                .map(|s| (f64::from(s.x_m), f64::from(s.i_a)))
-                .collect())
-        };
-        for (k, f) in crate::actuator::SEQUENCE.into_iter().enumerate() {
-            #[allow(clippy::cast_possible_truncation)]
-            let c = capture_move(
-                link,
-                capacity,
-                move_decimation,
-                Some(((f * stroke_m) as f32, None)),
-                rate_hz,
-            )?;
-            holds.moves[k] = readings(&c)?;
-            // The window: the hold's end, once the move has settled.
-            let c = capture_move(link, window_samples, window_decimation, None, rate_hz)?;
-            holds.windows[k] = readings(&c)?;
-            // The inductance at the hold: each probe captured at every tick from its first.
-            for _ in 0..crate::commissioning::HOLD_PROBE_RUNS {
-                link.done(Command::Capture {
-                    samples: span,
-                    decimation: 1,
-                    trigger: Trigger::Probe,
+    let mut attempt = 0;
+    let holds = loop {
+        let tuning = crate::commissioning::hold_tuning(&m, attempt)?;
+        let sets = commissioned_sets(file, &m, &tuning)?;
+        probes = Default::default();
+        let mut held = || -> anyhow::Result<Holds> {
+            for (name, value) in &sets {
+                link.done(Command::Set {
+                    name,
+                    value: *value,
                 })?;
-                link.done(probe.command())?;
-                let c = read_capture(link, span, 1, rate_hz)?;
-                // A fault during a probe ends the holds, named, as one during a window.
-                readings(&c)?;
-                probes[k].push(
-                    c.samples
-                        .iter()
-                        .map(|s| crate::commissioning::ProbeSample {
-                            y_m: f64::from(s.x_m),
-                            u_v: f64::from(s.u_v),
-                            i_a: f64::from(s.i_a),
-                            vbus_v: f64::from(s.vbus_v),
-                        })
-                        .collect(),
-                );
             }
+            // The holds start from the open stop, as the evaluation sequence does: the
+            // armature comes back there once the commissioning's last hold lets go.
+            let (open_m, still_m) = (
+                report.ends.open_m,
+                SPRING_START_SHARE * m.mechanics.stroke_m,
+            );
+            let deadline = Instant::now() + Duration::from_secs(10);
+            let mut near = 0;
+            while near < 5 {
+                ensure!(
+                    Instant::now() < deadline,
+                    "the armature did not come back to the open stop within 10 s"
+                );
+                near = if (status(link)?.x_m - open_m).abs() < still_m {
+                    near + 1
+                } else {
+                    0
+                };
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            link.done(Command::Arm)?;
+            let mut holds = Holds {
+                move_dt_s: f64::from(move_decimation) / rate_hz,
+                window_dt_s: f64::from(window_decimation) / rate_hz,
+                ..Holds::default()
+            };
+            let readings = |c: &Capture| -> anyhow::Result<Vec<(f64, f64)>> {
+                if let Some(s) = c.samples.iter().find(|s| s.fault != 0) {
+                    return Err(HoldsFault(fault_name(s.fault)).into());
+                }
+                Ok(c.samples
+                    .iter()
+                    .map(|s| (f64::from(s.x_m), f64::from(s.i_a)))
+                    .collect())
+            };
+            for (k, f) in crate::actuator::SEQUENCE.into_iter().enumerate() {
+                #[allow(clippy::cast_possible_truncation)]
+                let c = capture_move(
+                    link,
+                    capacity,
+                    move_decimation,
+                    Some(((f * stroke_m) as f32, None)),
+                    rate_hz,
+                )?;
+                holds.moves[k] = readings(&c)?;
+                // The window: the hold's end, once the move has settled.
+                let c = capture_move(link, window_samples, window_decimation, None, rate_hz)?;
+                holds.windows[k] = readings(&c)?;
+                // The inductance at the hold: each probe captured at every tick from its first.
+                for _ in 0..crate::commissioning::HOLD_PROBE_RUNS {
+                    link.done(Command::Capture {
+                        samples: span,
+                        decimation: 1,
+                        trigger: Trigger::Probe,
+                    })?;
+                    link.done(probe.command())?;
+                    let c = read_capture(link, span, 1, rate_hz)?;
+                    // A fault during a probe ends the holds, named, as one during a window.
+                    readings(&c)?;
+                    probes[k].push(
+                        c.samples
+                            .iter()
+                            .map(|s| crate::commissioning::ProbeSample {
+                                y_m: f64::from(s.x_m),
+                                u_v: f64::from(s.u_v),
+                                i_a: f64::from(s.i_a),
+                                vbus_v: f64::from(s.vbus_v),
+                            })
+                            .collect(),
+                    );
+                }
+            }
+            Ok(holds)
+        };
+        let holds = held();
+        // A monitor that ended the holds: again with gentler moves, while attempts are left.
+        let ended = holds
+            .as_ref()
+            .err()
+            .and_then(|e| e.downcast_ref::<HoldsFault>())
+            .map(|f| f.0.clone());
+        match ended {
+            Some(fault) if attempt + 1 < crate::commissioning::HOLD_ATTEMPTS => {
+                link.done(Command::Clear)?;
+                attempt += 1;
+                writeln!(
+                out,
+                "  the holds ended by the fault {fault}: again with gentler moves (shaping margin {})",
+                sig(f64::from(crate::commissioning::hold_tuning(&m, attempt)?.margin), 3)
+            )?;
+            }
+            _ => break holds,
         }
-        Ok(holds)
     };
-    let holds = held();
     // Whatever happened: the bridge off and the parameters in use before back.
     let disarmed = link.done(Command::Disarm);
     let loaded = link.done(if stored {
@@ -859,6 +883,18 @@ fn commissioned_sets(
     ]);
     Ok(sets)
 }
+
+/// A fault the board latched during the holds of [`measure_mechanics`], by name.
+#[derive(Debug)]
+struct HoldsFault(String);
+
+impl core::fmt::Display for HoldsFault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "fault {} latched during the holds", self.0)
+    }
+}
+
+impl std::error::Error for HoldsFault {}
 
 /// Sets the commissioned actuator `measured` and its `tuning` on the board and saves
 /// them; on a refusal the stored parameters are loaded back and nothing is saved.

@@ -43,6 +43,9 @@ const QUANTITIES: [(&str, f64); 6] = [
     ("closed stop reading error [codes]", 2.0),
 ];
 
+/// Actuator time a commissioning may take, the board's routine and the holds \[s\].
+pub const COMMISSIONING_S: f64 = 10.0;
+
 /// Runs the draws and prints the table.
 ///
 /// # Errors
@@ -59,11 +62,12 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             let Ok(r) = o.report else {
                 return Ok((o, None, None));
             };
-            let mechanics = commissioning::mechanics(&a, &r, &plant, Some(&draw))?;
+            let holding = commissioning::mechanics(&a, &r, &plant, Some(&draw))?;
+            let mechanics = holding.mechanics.as_ref();
             // Relative rate error; preload error as a share of the spring's force over
             // the stroke; relative mass and friction errors, and the friction's error
             // as a share of the critical damping (NaN: no move fitted).
-            let mechanics_errors = mechanics.map(|m| {
+            let mechanics_errors = mechanics.map_err(|f| *f).map(|m| {
                 let (mass, friction) = m.armature.map_or((f64::NAN, f64::NAN), |arm| {
                     (
                         arm.mass_kg / plant.mass_kg - 1.0,
@@ -77,7 +81,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                     .iter()
                     .fold(0.0, |w, e| crate::targets::worse(w, e.abs()));
                 // The circuit the file written with the holds carries.
-                let fitted = commissioning::measured(&a, &r, Some(&m))
+                let fitted = commissioning::measured(&a, &r, Some(m))
                     .and_then(|(f, _)| commissioning::curve_error(&f, &plant))
                     .unwrap_or(f64::NAN);
                 [
@@ -92,16 +96,12 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                 ]
             });
             let closed = if args.tune {
-                Some(commissioning::closed_loop(
-                    &a,
-                    &r,
-                    mechanics.ok().as_ref(),
-                    &plant,
-                )?)
+                Some(commissioning::closed_loop(&a, &r, mechanics.ok(), &plant)?)
             } else {
                 None
             };
-            Ok((o, Some(mechanics_errors), closed))
+            let held = (mechanics_errors, holding.faults.clone(), holding.took_s);
+            Ok((o, Some(held), closed))
         })
         .collect::<Result<Vec<_>, crate::Error>>()?;
     let outcomes: Vec<_> = runs.iter().map(|(o, _, _)| *o).collect();
@@ -158,14 +158,24 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         let v = errors.iter().map(|e| scale * e[i].abs()).collect();
         row(&mut t, what, v, Some(*target));
     }
+    // The faults that ended an attempt at the holds, and those that ended the last.
+    let mut attempts_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut mechanics: Vec<[f64; 7]> = Vec::new();
-    for s in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
+    for (s, faults, _) in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
+        for f in faults {
+            *attempts_faulted.entry(f).or_default() += 1;
+        }
         match s {
             Ok(e) => mechanics.push(*e),
             Err(f) => *holds_faulted.entry(f).or_default() += 1,
         }
     }
+    let retried = runs
+        .iter()
+        .filter_map(|(_, s, _)| s.as_ref())
+        .filter(|(s, faults, _)| s.is_ok() && !faults.is_empty())
+        .count();
     for (i, (what, target)) in [
         (
             "spring rate error [%]",
@@ -193,8 +203,18 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     }
     let unfitted = mechanics.iter().filter(|e| e[2].is_nan()).count();
     let took = outcomes.iter().map(|o| o.took_s).collect();
+    let with_holds = runs
+        .iter()
+        .map(|(o, s, _)| o.took_s + s.as_ref().map_or(0.0, |(_, _, held_s)| *held_s))
+        .collect();
     let peak = outcomes.iter().map(|o| 100.0 * o.peak_a / rated).collect();
-    row(&mut t, "actuator time [s]", took, Some(10.0));
+    row(&mut t, "actuator time, the board's routine [s]", took, None);
+    row(
+        &mut t,
+        "actuator time, routine and holds [s]",
+        with_holds,
+        Some(COMMISSIONING_S),
+    );
     row(
         &mut t,
         "largest coil current [% of the rating]",
@@ -247,21 +267,24 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             endings.join(", ")
         }
     )?;
-    let holds_faulted: Vec<String> = holds_faulted
-        .iter()
-        .map(|(k, v)| format!("{k} {v}"))
-        .collect();
+    let named = |m: &BTreeMap<&str, usize>| {
+        if m.is_empty() {
+            "none".to_owned()
+        } else {
+            m.iter()
+                .map(|(k, v)| format!("{k} {v}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    };
     writeln!(
         out,
-        "spring measured on {} of the {} commissioned, the mass and the friction on {} (no move to fit: {unfitted}); holds ended by a fault: {}",
+        "spring measured on {} of the {} commissioned, the mass and the friction on {} (no move to fit: {unfitted}); attempts at the holds ended by a fault: {} (measured on a gentler attempt: {retried}); holds that measured nothing: {}",
         mechanics.len(),
         errors.len(),
         mechanics.len() - unfitted,
-        if holds_faulted.is_empty() {
-            "none".to_owned()
-        } else {
-            holds_faulted.join(", ")
-        }
+        named(&attempts_faulted),
+        named(&holds_faulted),
     )?;
     Ok(())
 }

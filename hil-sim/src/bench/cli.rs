@@ -559,12 +559,7 @@ fn measure_mechanics<P: std::io::Read + Write>(
         let sets = commissioned_sets(file, &m, &tuning)?;
         probes = Default::default();
         let mut held = || -> anyhow::Result<Holds> {
-            for (name, value) in &sets {
-                link.done(Command::Set {
-                    name,
-                    value: *value,
-                })?;
-            }
+            set_all(link, &sets)?;
             // The holds start from the open stop, as the evaluation sequence does: the
             // armature comes back there once the commissioning's last hold lets go.
             let (open_m, still_m) = (
@@ -905,14 +900,51 @@ fn apply_commissioned<P: std::io::Read + Write>(
     tuning: &ema::actuator::Tuning,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
-    for (name, value) in commissioned_sets(board, measured, tuning)? {
-        if let Err(e) = link.done(Command::Set { name, value }) {
-            link.done(Command::Load)?;
-            bail!("{e}; the stored parameters are loaded back, nothing saved");
-        }
+    let sets = commissioned_sets(board, measured, tuning)?;
+    if let Err(e) = set_all(link, &sets) {
+        link.done(Command::Load)?;
+        bail!("{e}; the stored parameters are loaded back, nothing saved");
+    }
+    for (name, value) in sets {
         writeln!(out, "{name} = {}", value_text(name, value))?;
     }
     save(link, out)
+}
+
+/// Sets every `(name, value)` on the board. The board validates each set with the rest
+/// as they stand, so a valid whole can be refused halfway (a stiffer spring before the
+/// stronger circuit that carries it): the refused ones are set again after the others,
+/// pass after pass, for as long as a pass sets one.
+///
+/// # Errors
+/// A pass that sets none (the board's refusal of the last one), or the link failing.
+pub fn set_all<P: std::io::Read + Write>(
+    link: &mut Link<P>,
+    sets: &[(&'static str, Value)],
+) -> anyhow::Result<()> {
+    let mut pending = sets.to_vec();
+    while !pending.is_empty() {
+        let mut refused = Vec::new();
+        let mut last = None;
+        for (name, value) in &pending {
+            match link.done(Command::Set {
+                name,
+                value: *value,
+            }) {
+                Ok(()) => {}
+                Err(e) if e.downcast_ref::<super::link::Refused>().is_some() => {
+                    refused.push((*name, *value));
+                    last = Some(e);
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if refused.len() == pending.len() {
+            return Err(last.unwrap_or_else(|| anyhow!("nothing to set")));
+        }
+        pending = refused;
+    }
+    Ok(())
 }
 
 /// Stores the parameters in use; the board restarts with them.

@@ -156,7 +156,7 @@ impl<P: Read + Write> Link<P> {
             Message::Reply {
                 reply: Reply::Refused(r),
                 ..
-            } => Err(anyhow!("refused: {}", super::refusal(&r))),
+            } => Err(Refused(super::refusal(&r)).into()),
             other => Err(anyhow!("unexpected reply: {other:?}")),
         }
     }
@@ -202,3 +202,15 @@ fn owned_started(s: &Started<'_>) -> Started<'static> {
         rate_hz: s.rate_hz,
     }
 }
+
+/// The board refused a command: the refusal, in words ([`super::refusal`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Refused(pub String);
+
+impl core::fmt::Display for Refused {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "refused: {}", self.0)
+    }
+}
+
+impl std::error::Error for Refused {}

@@ -645,11 +645,12 @@ fn measure_mechanics<P: std::io::Read + Write>(
             Some(fault) if attempt + 1 < crate::commissioning::HOLD_ATTEMPTS => {
                 link.done(Command::Clear)?;
                 attempt += 1;
+                let gentler = crate::commissioning::hold_tuning(&m, attempt)?;
                 writeln!(
-                out,
-                "  the holds ended by the fault {fault}: again with gentler moves (shaping margin {})",
-                sig(f64::from(crate::commissioning::hold_tuning(&m, attempt)?.margin), 3)
-            )?;
+                    out,
+                    "  the holds ended by the fault {fault}: again with gentler moves (shaping margin {})",
+                    sig(f64::from(gentler.margin), 3)
+                )?;
             }
             _ => break holds,
         }

@@ -162,20 +162,20 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     let mut attempts_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut mechanics: Vec<[f64; 7]> = Vec::new();
+    // Holds measured on an attempt after the first.
+    let mut retried = 0;
     for (s, faults, _) in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
         for f in faults {
             *attempts_faulted.entry(f).or_default() += 1;
         }
         match s {
-            Ok(e) => mechanics.push(*e),
+            Ok(e) => {
+                mechanics.push(*e);
+                retried += usize::from(!faults.is_empty());
+            }
             Err(f) => *holds_faulted.entry(f).or_default() += 1,
         }
     }
-    let retried = runs
-        .iter()
-        .filter_map(|(_, s, _)| s.as_ref())
-        .filter(|(s, faults, _)| s.is_ok() && !faults.is_empty())
-        .count();
     for (i, (what, target)) in [
         (
             "spring rate error [%]",

@@ -114,9 +114,13 @@ pub const AVERAGE_TIME_CONSTANTS: f32 = 2.0;
 /// was still moving (its motion induces a voltage the steady state must not contain, and
 /// its mean position is no stop's) before it gives up.
 pub const PATIENCE_PERIODS: f32 = 4.0;
-/// Slowest mechanical periods waited after the coil is switched off, before the open
-/// stop's window.
-pub const RELEASE_PERIODS: f32 = 0.5;
+/// Slowest mechanical periods waited at each hold at the stops (after the coil's
+/// settling), before its window: a quarter period is the time the slowest armature
+/// admitted, released, takes to swing back to its rest. A window the armature's
+/// bounce or creep still moves in starts again ([`PATIENCE_PERIODS`]). Each of the five
+/// holds waits it: on a slow armature (a 1 kg plunger on a soft spring, a period near
+/// 1.5 s) it is most of the routine's time.
+pub const RELEASE_PERIODS: f32 = 0.25;
 /// Slowest mechanical periods the approach's voltage ramp lasts.
 pub const RAMP_PERIODS: f32 = 0.5;
 /// Share of the rated current (at the first two steps' resistance) the approach ends at
@@ -1191,9 +1195,9 @@ mod tests {
         assert_eq!(p.u_v, [0.3 * 4.0 * 2.0, 0.6 * 4.0 * 2.0]);
         assert_eq!(p.abort_a, 4.0);
         // Slowest armature: 63.2 * sqrt(0.5 / 1.5) = 36.49 rad/s, a period of 172.2 ms;
-        // half of it, 1722 ticks; the release adds the coil's 180 ms.
+        // half of it, 1722 ticks; the release a quarter of it, 861, after the coil's 180 ms.
         assert_eq!(p.ramp_ticks, 1722);
-        assert_eq!(p.release_ticks, 5322);
+        assert_eq!(p.release_ticks, 4461);
         // The probe's pull at the open stop: a tenth of the weakest spring's 4 N over the
         // stroke (2000 N/m, 2 mm) against the strongest magnet (4.5 N/A^2) is 0.42 A,
         // under a fifth of the rating (0.8 A).

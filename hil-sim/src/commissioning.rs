@@ -997,9 +997,10 @@ pub const STOP_INDUCTANCE_CLASS: f64 = 0.01;
 /// [`STOP_INDUCTANCE_CLASS`] (the 12 V solenoid's open stop, up to 2.7 %) looks like
 /// growth: on 1000 drawn 12 V solenoids, whose surface is constant, a growth kept at
 /// three deviations read 4 springs more than 5 % off (up to 8.4 %), at five one to
-/// three in a thousand (up to 5.4 %, on two sets of draws). A growth that matters is
-/// still kept: a pole whose sides grow by 0.3 of the gap, 14 % off the stops' line, is
-/// read within 2 % of its growth (the tests).
+/// three in a thousand (up to 5.4 %, on two sets of draws; with the open stop's probe
+/// twice as long, [`ema::commission::PROBE_READINGS`], none and one, 5.2 %). A growth
+/// that matters is still kept: a pole whose sides grow by 0.3 of the gap, 14 % off the
+/// stops' line, is read within 2 % of its growth (the tests).
 pub const GROWTH_SIGNIFICANCE: f64 = 5.0;
 
 /// The largest surface growth [`Circuit::fit`] considers, as `q g` at the open stop: at

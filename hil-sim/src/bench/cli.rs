@@ -122,7 +122,7 @@ pub struct CommissionArgs {
     pub tune: bool,
     /// Then measures the spring's rate and preload, the mass and the friction: the loop
     /// closed with the measured coil and circuit and the default tuning (for the holds
-    /// only, then put back; holds a monitor ends run again with gentler moves), the armature moved to and held at 1/8, 7/8, 3/8 and 3/4 of
+    /// only, then put back; holds a monitor ends run again with a slower loop), the armature moved to and held at 1/8, 7/8, 3/8 and 3/4 of
     /// the stroke, the magnet's pull read from the captured current (the board drives the
     /// coil and the armature moves): the spring from the holds, the mass and the friction
     /// from the moves. `--out` writes them, `--tune` tunes for them and `--apply` sets
@@ -507,7 +507,7 @@ pub fn commission<P: std::io::Read + Write>(
 /// [`crate::commissioning::decimations`], then the hold's inductance probes at every
 /// tick; disarms and puts the parameters in use before back (the stored set, or the
 /// built-in defaults). A fault during the holds ends the attempt, named: the holds run
-/// again, cleared, with gentler moves ([`crate::commissioning::hold_tuning`]), up to
+/// again, cleared, with a slower loop ([`crate::commissioning::hold_tuning`]), up to
 /// [`crate::commissioning::HOLD_ATTEMPTS`] in all.
 ///
 /// # Errors
@@ -635,7 +635,7 @@ fn measure_mechanics<P: std::io::Read + Write>(
             Ok(holds)
         };
         let holds = held();
-        // A monitor that ended the holds: again with gentler moves, while attempts are left.
+        // A monitor that ended the holds: again with a slower loop, while attempts are left.
         let ended = holds
             .as_ref()
             .err()
@@ -645,11 +645,12 @@ fn measure_mechanics<P: std::io::Read + Write>(
             Some(fault) if attempt + 1 < crate::commissioning::HOLD_ATTEMPTS => {
                 link.done(Command::Clear)?;
                 attempt += 1;
-                let gentler = crate::commissioning::hold_tuning(&m, attempt)?;
+                let slower = crate::commissioning::hold_tuning(&m, attempt)?;
                 writeln!(
                     out,
-                    "  the holds ended by the fault {fault}: again with gentler moves (shaping margin {})",
-                    sig(f64::from(gentler.margin), 3)
+                    "  the holds ended by the fault {fault}: again with a slower loop (alpha {} 1/s, observer {} rad/s)",
+                    sig(f64::from(slower.alpha_per_s), 3),
+                    sig(f64::from(slower.observer_rad_s), 3)
                 )?;
             }
             _ => break holds,

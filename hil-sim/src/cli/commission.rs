@@ -279,7 +279,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     };
     writeln!(
         out,
-        "spring measured on {} of the {} commissioned, the mass and the friction on {} (no move to fit: {unfitted}); attempts at the holds ended by a fault: {} (measured on a gentler attempt: {retried}); holds that measured nothing: {}",
+        "spring measured on {} of the {} commissioned, the mass and the friction on {} (no move to fit: {unfitted}); attempts at the holds ended by a fault: {} (measured on a slower attempt: {retried}); holds that measured nothing: {}",
         mechanics.len(),
         errors.len(),
         mechanics.len() - unfitted,

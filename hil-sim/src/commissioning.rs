@@ -456,7 +456,7 @@ pub fn mechanics(
         match result {
             Ok(mechanics) => {
                 return Ok(Holding {
-                    mechanics: Ok(mechanics),
+                    mechanics: Some(mechanics),
                     faults,
                     took_s,
                 })
@@ -464,9 +464,8 @@ pub fn mechanics(
             Err(f) => faults.push(f),
         }
     }
-    let last = faults.last().copied().unwrap_or("none");
     Ok(Holding {
-        mechanics: Err(last),
+        mechanics: None,
         faults,
         took_s,
     })
@@ -509,9 +508,9 @@ pub fn hold_tuning(m: &Actuator, attempt: u32) -> Result<ema::actuator::Tuning, 
 /// What the holds of [`mechanics`] gave.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Holding {
-    /// What they measured, or the fault that ended the last attempt (nothing measured:
-    /// the file keeps its spring and mass).
-    pub mechanics: Result<Mechanics, &'static str>,
+    /// What they measured; none when a fault ended every attempt (the last of
+    /// [`Holding::faults`]: the file keeps its spring and mass).
+    pub mechanics: Option<Mechanics>,
     /// The faults that ended attempts, in order.
     pub faults: Vec<&'static str>,
     /// Actuator time the attempts took, the probes at the end of each hold included

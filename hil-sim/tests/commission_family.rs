@@ -176,13 +176,14 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
 }
 
 /// A plant drawn off actuator `a`, commissioned, then held in closed loop: the draw, the
-/// true plant, the commissioning's report and what the holds measured (`Err`: the fault
-/// that ended them).
+/// true plant, the commissioning's report, what the holds measured (none: every attempt
+/// ended by a fault) and the faults that ended attempts.
 struct Drawn {
     draw: hil_sim::commissioning::Draw,
     plant: hil_sim::plant::Params,
     report: ema::commission::Report,
-    mechanics: Result<hil_sim::commissioning::Mechanics, &'static str>,
+    mechanics: Option<hil_sim::commissioning::Mechanics>,
+    faults: Vec<&'static str>,
 }
 
 /// A plant drawn off actuator `a` with `rng`, commissioned and held ([`Drawn`]).
@@ -191,14 +192,13 @@ fn holds_on_a_drawn_plant(a: &ema::actuator::Actuator, rng: &mut rand_pcg::Pcg64
     let o = hil_sim::commissioning::run(a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
     let plant = hil_sim::commissioning::true_plant(a, Some(&draw)).unwrap();
-    let mechanics = hil_sim::commissioning::mechanics(a, &report, &plant, Some(&draw))
-        .unwrap()
-        .mechanics;
+    let holding = hil_sim::commissioning::mechanics(a, &report, &plant, Some(&draw)).unwrap();
     Drawn {
         draw,
         plant,
         report,
-        mechanics,
+        mechanics: holding.mechanics,
+        faults: holding.faults,
     }
 }
 
@@ -242,10 +242,15 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                 draw,
                 plant,
                 mechanics,
+                faults,
                 ..
             } = holds_on_a_drawn_plant(&a, &mut rng);
+            assert!(
+                faults.is_empty(),
+                "{name}: attempts ended by {faults:?}; {draw:?}"
+            );
             let (s, arm) = match mechanics {
-                Ok(m) => {
+                Some(m) => {
                     let errors = m.inductance_errors(&plant);
                     for (k, (probe, e)) in m.inductances.iter().zip(errors).enumerate() {
                         let Some((x, l, spread)) = *probe else {
@@ -261,7 +266,7 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                     }
                     (m.spring, m.armature)
                 }
-                Err(fault) => panic!("{name}: holds ended by {fault}; {draw:?}"),
+                None => panic!("{name}: holds ended by {faults:?}; {draw:?}"),
             };
             let k = s.n_per_m / plant.spring_n_per_m - 1.0;
             let f0 = (s.preload_n - plant.preload_n) / (plant.spring_n_per_m * plant.stroke_m);

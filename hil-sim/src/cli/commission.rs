@@ -67,7 +67,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             // Relative rate error; preload error as a share of the spring's force over
             // the stroke; relative mass and friction errors, and the friction's error
             // as a share of the critical damping (NaN: no move fitted).
-            let mechanics_errors = mechanics.map_err(|f| *f).map(|m| {
+            let mechanics_errors = mechanics.map(|m| {
                 let (mass, friction) = m.armature.map_or((f64::NAN, f64::NAN), |arm| {
                     (
                         arm.mass_kg / plant.mass_kg - 1.0,
@@ -96,7 +96,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                 ]
             });
             let closed = if args.tune {
-                Some(commissioning::closed_loop(&a, &r, mechanics.ok(), &plant)?)
+                Some(commissioning::closed_loop(&a, &r, mechanics, &plant)?)
             } else {
                 None
             };
@@ -168,12 +168,12 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         for f in faults {
             *attempts_faulted.entry(f).or_default() += 1;
         }
-        match s {
-            Ok(e) => {
+        match (s, faults.last()) {
+            (Some(e), _) => {
                 mechanics.push(*e);
                 retried += usize::from(!faults.is_empty());
             }
-            Err(f) => *holds_faulted.entry(f).or_default() += 1,
+            (None, last) => *holds_faulted.entry(last.unwrap_or(&"none")).or_default() += 1,
         }
     }
     for (i, (what, target)) in [

@@ -497,12 +497,12 @@ fn a_product_the_grid_misses_by_two_percent_is_tuned_between_its_points() {
     assert_eq!(worst.misses(&targets), Vec::<&str>::new(), "{worst:?}");
 }
 
-/// The product's plant with each airgap's surface growing with the gap as a square
-/// pole's fringing does, `(a + k g)^2` (the paper's rectangular-pole form with `k` for
-/// its 1), the file's surface at mid-stroke, and the energy-consistent force `-dL/dg`
-/// such a surface gives.
-fn growing_product(k: f64) -> (ema::actuator::Actuator, hil_sim::plant::Params, f64) {
-    let (_, a) = hil_sim::actuator::load("product").unwrap();
+/// Family member `name`'s plant with each airgap's surface growing with the gap as a
+/// square pole's fringing does, `(a + k g)^2` (the paper's rectangular-pole form with
+/// `k` for its 1), the file's surface at mid-stroke, and the energy-consistent force
+/// `-dL/dg` such a surface gives: the file, the plant and the growth `q` \[1/m\].
+fn growing(name: &str, k: f64) -> (ema::actuator::Actuator, hil_sim::plant::Params, f64) {
+    let (_, a) = hil_sim::actuator::load(name).unwrap();
     let mut plant = hil_sim::commissioning::true_plant(&a, None).unwrap();
     let mid = plant.gap_m(0.5 * plant.stroke_m);
     let side = plant.gaps[0].area_m2(mid).sqrt() - k * mid;
@@ -527,7 +527,7 @@ fn growing_product(k: f64) -> (ema::actuator::Actuator, hil_sim::plant::Params, 
 #[test]
 fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_targets() {
     use hil_sim::commissioning as c;
-    let (a, plant, growth) = growing_product(0.3);
+    let (a, plant, growth) = growing("product", 0.3);
     let report = c::run_on(&a, &plant, None).unwrap().report.unwrap();
     let m = c::mechanics(&a, &report, &plant, None)
         .unwrap()
@@ -569,6 +569,48 @@ fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_
     assert_eq!(closed.misses(), Vec::<&str>::new(), "{closed:?}");
 }
 
+/// A 12 V solenoid whose pole grows by 0.3 of the gap, its file in the two-inductance
+/// form, which carries no growth: the circuit fitted to the stops and the holds reads
+/// the growth within 5 % and the spring within 2 %, but the file written through the
+/// fitted circuit's stop values models the inductance 8-9 % off between them. It says
+/// so: its surface tolerance, the controller's uncertainty set, is that deviation
+/// ([`hil_sim::commissioning::Mechanics::form_deviation`]), not the 5 % class, and,
+/// tuned for it, the loop meets every target on the plant (as it does told the class:
+/// this plant is within the law's robustness either way).
+#[test]
+fn a_two_inductance_file_carries_a_growing_surface_as_its_uncertainty() {
+    use hil_sim::commissioning as c;
+    let (a, plant, growth) = growing("solenoid-12v", 0.3);
+    assert!(matches!(
+        a.magnetics,
+        ema::actuator::Magnetics::Inductance { .. }
+    ));
+    let report = c::run_on(&a, &plant, None).unwrap().report.unwrap();
+    let m = c::mechanics(&a, &report, &plant, None)
+        .unwrap()
+        .mechanics
+        .unwrap();
+    let (fitted, _) = c::measured(&a, &report, Some(&m)).unwrap();
+    let curve = c::curve_error(&fitted, &plant).unwrap();
+    let q = m.circuit.growth_per_m / growth - 1.0;
+    let k = m.spring.n_per_m / plant.spring_n_per_m - 1.0;
+    let surface = f64::from(fitted.tolerance.surface);
+    eprintln!(
+        "growth {:+.2} %, spring {:+.2} %; curve of the file {:.2} % off, its surface tolerance {:.2} %",
+        100.0 * q,
+        100.0 * k,
+        100.0 * curve,
+        100.0 * surface
+    );
+    assert!(q.abs() < 0.05, "{:?}", m.circuit);
+    assert!(k.abs() < 0.02, "{:?}", m.spring);
+    assert!(curve > c::SURFACE_CLASS, "{curve}");
+    assert!(surface > 0.9 * curve, "{surface} against {curve}");
+    let closed = c::closed_loop(&a, &report, Some(&m), &plant).unwrap();
+    eprintln!("{closed:?}");
+    assert_eq!(closed.misses(), Vec::<&str>::new(), "{closed:?}");
+}
+
 /// Readings of a circuit whose surface is constant, each off by less than its own
 /// standard deviation in a pattern a growing surface would explain better: the fit keeps
 /// the surface constant ([`hil_sim::commissioning::GROWTH_SIGNIFICANCE`]) and the line
@@ -578,7 +620,7 @@ fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_
 fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
     use hil_sim::commissioning::{Circuit, CURVE_POSITIONS};
     for (k, grows) in [(0.0, false), (0.3, true)] {
-        let (a, plant, growth) = growing_product(k);
+        let (a, plant, growth) = growing("product", k);
         let at = |x: f64| plant.inductance_h(plant.gap_m(x));
         let stroke = plant.stroke_m;
         // Ends high, middle low: the shape a growth gives `1/L`; 2 standard errors 0.5 %.

@@ -309,10 +309,10 @@ fn refused(e: StartError) -> ! {
 }
 
 fn status_line(s: &Snapshot) {
-    let fault = Fault::from_code(s.fault).map_or("none", Fault::name);
-    let mode = ema::bridge::Mode::from_code(s.mode).map_or("?", ema::bridge::Mode::name);
+    let fault = Fault::from_code(s.fault);
+    let mode = ema::bridge::Mode::from_code(s.mode);
     defmt::info!(
-        "t={=u32}s {=str} fault={=str} bridge={=str} x={=i32}um i={=i32}mA | cycles/tick mean {=u32} max {=u32} (max since start {=u32}, period {=u32}) | overruns {=u32}",
+        "t={=u32}s {=str} fault={} bridge={} x={=i32}um i={=i32}mA | cycles/tick mean {=u32} max {=u32} (max since start {=u32}, period {=u32}) | overruns {=u32}",
         s.ticks / board::CONTROL_RATE_HZ,
         if s.fault == 0 { "running" } else { "tripped" },
         fault,
@@ -330,32 +330,51 @@ fn status_line(s: &Snapshot) {
 /// Logs what the last run's end was, from the reset flags and the record.
 fn log_last_stop(flags: reset::Flags, last: Option<Record>, latched: Option<Fault>) {
     let by = if flags.window_watchdog {
-        "window watchdog"
+        By::WindowWatchdog
     } else if flags.independent_watchdog {
-        "independent watchdog"
+        By::IndependentWatchdog
     } else {
-        "power-on, reset pin or software"
+        By::Person
     };
     match (last, latched) {
         (Some(r), Some(f)) => defmt::warn!(
-            "reset by the {=str} after: {=str} (detail {=u8}); starting with fault {=str} latched",
+            "reset by the {} after: {} (detail {=u8}); starting with fault {} latched",
             by,
-            r.cause.name(),
+            r.cause,
             r.detail,
-            f.name()
+            f
         ),
         (None, Some(f)) => defmt::warn!(
-            "reset by the {=str}, cause not recorded (the tick stopped with interrupts masked); starting with fault {=str} latched",
+            "reset by the {}, cause not recorded (the tick stopped with interrupts masked); starting with fault {} latched",
             by,
-            f.name()
+            f
         ),
         (Some(r), None) => defmt::info!(
-            "reset by the {=str} after: {=str} (detail {=u8}); the controller never drove: starting again",
+            "reset by the {} after: {} (detail {=u8}); the controller never drove: starting again",
             by,
-            r.cause.name(),
+            r.cause,
             r.detail
         ),
-        (None, None) => defmt::info!("reset by the {=str}", by),
+        (None, None) => defmt::info!("reset by the {}", by),
+    }
+}
+
+/// What reset the chip, as the log says it (the texts stay in the log's symbols, not in
+/// flash).
+#[derive(Clone, Copy)]
+enum By {
+    WindowWatchdog,
+    IndependentWatchdog,
+    Person,
+}
+
+impl defmt::Format for By {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        match self {
+            By::WindowWatchdog => defmt::write!(f, "window watchdog"),
+            By::IndependentWatchdog => defmt::write!(f, "independent watchdog"),
+            By::Person => defmt::write!(f, "power-on, reset pin or software"),
+        }
     }
 }
 
@@ -435,13 +454,21 @@ fn start() -> Result<MainLoop, StartError> {
     // Current-sensor zero, bridge coasting since reset.
     let (zero, spread) = measure_current_zero(&mut independent)?;
     let plausible = board::zero_plausible(zero, spread);
-    defmt::info!(
-        "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: {=str}",
-        zero,
-        ema::sense::CURRENT_ZERO_CODE,
-        spread,
-        if plausible { "used" } else { "REFUSED" }
-    );
+    if plausible {
+        defmt::info!(
+            "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: used",
+            zero,
+            ema::sense::CURRENT_ZERO_CODE,
+            spread
+        );
+    } else {
+        defmt::info!(
+            "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: REFUSED",
+            zero,
+            ema::sense::CURRENT_ZERO_CODE,
+            spread
+        );
+    }
     // The board's own refusals (the paper's force convention) still apply.
     board::settings(None).map_err(StartError::Settings)?;
     let board_now = Board {
@@ -529,15 +556,26 @@ fn start() -> Result<MainLoop, StartError> {
 
 /// Logs where the parameters came from and what the save this start made did.
 fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::protocol::StoreError>>) {
-    let from = match source {
-        Source::Stored => "the stored set",
-        Source::Defaults => "the built-in defaults (nothing stored)",
-        Source::Fallback(_) => "the built-in defaults (the stored set was refused)",
-    };
     match saved {
-        None => defmt::info!("parameters: {=str}", from),
-        Some(Ok(())) => defmt::info!("parameters saved; in use: {=str}", from),
-        Some(Err(_)) => defmt::error!("parameters NOT saved; in use: {=str}", from),
+        None => defmt::info!("parameters: {}", From(source)),
+        Some(Ok(())) => defmt::info!("parameters saved; in use: {}", From(source)),
+        Some(Err(_)) => defmt::error!("parameters NOT saved; in use: {}", From(source)),
+    }
+}
+
+/// Where the parameters in use came from, as the log says it (the texts stay in the
+/// log's symbols, not in flash).
+struct From<'a, 'b>(&'a Source<'b>);
+
+impl defmt::Format for From<'_, '_> {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        match self.0 {
+            Source::Stored => defmt::write!(f, "the stored set"),
+            Source::Defaults => defmt::write!(f, "the built-in defaults (nothing stored)"),
+            Source::Fallback(_) => {
+                defmt::write!(f, "the built-in defaults (the stored set was refused)");
+            }
+        }
     }
 }
 

@@ -19,7 +19,6 @@ use ema::supervisor::Fault;
 
 /// What stopped the firmware.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[repr(u8)]
 pub enum Cause {
     /// The clock set-up was running: a crystal that does not start hangs there until the
@@ -50,24 +49,26 @@ impl Cause {
         Cause::UnexpectedInterrupt,
     ];
 
-    /// Short name, as logged.
-    #[must_use]
-    pub const fn name(self) -> &'static str {
-        match self {
-            Cause::ClockSetup => "clock set-up hung (crystal?)",
-            Cause::StartRefused => "start refused",
-            Cause::TickStalled => "tick stalled (window watchdog early wake-up)",
-            Cause::Panic => "panic",
-            Cause::HardFault => "hard fault",
-            Cause::ClockFailure => "crystal failed (clock security system)",
-            Cause::UnexpectedInterrupt => "unexpected interrupt",
-        }
-    }
-
     /// Whether the controller may have been driving when this stopped it.
     #[must_use]
     pub const fn while_driving(self) -> bool {
         !matches!(self, Cause::ClockSetup | Cause::StartRefused)
+    }
+}
+
+/// The cause as logged (the texts stay in the log's symbols, not in flash).
+#[cfg(target_os = "none")]
+impl defmt::Format for Cause {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        match self {
+            Cause::ClockSetup => defmt::write!(f, "clock set-up hung (crystal?)"),
+            Cause::StartRefused => defmt::write!(f, "start refused"),
+            Cause::TickStalled => defmt::write!(f, "tick stalled (window watchdog early wake-up)"),
+            Cause::Panic => defmt::write!(f, "panic"),
+            Cause::HardFault => defmt::write!(f, "hard fault"),
+            Cause::ClockFailure => defmt::write!(f, "crystal failed (clock security system)"),
+            Cause::UnexpectedInterrupt => defmt::write!(f, "unexpected interrupt"),
+        }
     }
 }
 

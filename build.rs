@@ -9,14 +9,17 @@
 //!    refuses it. The actuator is then written as a Rust constant to
 //!    `$OUT_DIR/actuator.rs`, which the firmware's `board.rs` includes; the firmware
 //!    derives its settings from it at start, bit for bit as here (f32 only).
-//! 2. **Link scripts.** For the thumb builds, puts `memory.x` on the linker search path
+//! 2. **The build's identity.** `EMA_BUILD_ID` (for `ema::protocol::Build::THIS`, which
+//!    the board reports in its status): the commit the sources are at, `git rev-parse
+//!    --short=12 HEAD`; `unknown` outside a repository.
+//! 3. **Link scripts.** For the thumb builds, puts `memory.x` on the linker search path
 //!    (cortex-m-rt's `link.x` includes it) and links defmt's script into the firmware
 //!    binary only. `-Tlink.x` itself is given once, in `.cargo/config.toml`.
 //!
 //! The core is included below module by module, with the same names as in `src/lib.rs`,
 //! so that its `crate::` paths resolve here too: a build script cannot depend on the
 //! package it builds.
-use std::{env, fs, path::PathBuf};
+use std::{env, fs, path::PathBuf, process::Command};
 
 #[allow(dead_code, unused_imports, clippy::all)]
 #[path = "src/actuator.rs"]
@@ -62,6 +65,7 @@ fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-env-changed=EMA_ACTUATOR");
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    println!("cargo:rustc-env=EMA_BUILD_ID={}", build_id());
 
     let actuator = match env::var("EMA_ACTUATOR") {
         Ok(path) if !path.is_empty() => {
@@ -96,6 +100,32 @@ fn main() {
     // Identical code folding: functions whose machine code is the same (monomorphisations
     // of one generic for types of one layout, identical closures) are kept once.
     println!("cargo:rustc-link-arg-bin=firmware=--icf=all");
+}
+
+/// The commit the sources are at (see the module docs); cargo runs the script again when
+/// `HEAD` or the branch it names moves.
+fn build_id() -> String {
+    let git = |args: &[&str]| {
+        Command::new("git")
+            .args(args)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned())
+    };
+    let Some(commit) = git(&["rev-parse", "--short=12", "HEAD"]) else {
+        return "unknown".into();
+    };
+    let branch = git(&["symbolic-ref", "-q", "HEAD"]);
+    for watched in ["HEAD", "packed-refs"].into_iter().chain(branch.as_deref()) {
+        // Only files that exist: a missing one would run the script at every build.
+        if let Some(path) = git(&["rev-parse", "--git-path", watched]) {
+            if fs::metadata(&path).is_ok() {
+                println!("cargo:rerun-if-changed={path}");
+            }
+        }
+    }
+    commit
 }
 
 /// Stops the build with `message` (cargo shows it as the script's error).

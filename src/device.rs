@@ -68,12 +68,13 @@ use crate::bridge::{HBridge, Mode as BridgeMode};
 use crate::commission;
 use crate::control::{self, Status as TickStatus};
 use crate::guard::{self, End, Start};
+use crate::liveness::{self, Pulse};
 use crate::math;
 use crate::params::{Board, Params, Refused};
 use crate::protocol::{
-    self, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid, LoadError,
-    Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status, StoreError,
-    Telemetry, Trigger, MAX_FRAME,
+    self, Build, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid,
+    LoadError, Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status,
+    StoreError, Telemetry, Trigger, MAX_FRAME,
 };
 use crate::sense::{Frame, Measurement};
 use crate::store::Store;
@@ -91,6 +92,10 @@ pub const SAMPLE_SLOTS: usize = 16;
 pub const TX_CAPACITY: usize = 1024;
 /// Longest move a [`Command::Move`] may ask for \[s\].
 pub const MAX_MOVE_S: f32 = 10.0;
+/// Rejections ([`Message::Rejected`]) the board sends at most per second: one per
+/// millisecond, about 10 bytes each, a fifth of the link's 46 bytes per millisecond at
+/// most, however noisy the line; the rest are counted, not answered.
+pub const REJECTIONS_PER_S: f32 = 1000.0;
 /// Largest amplitude a [`Command::Probe`] may ask for, as a share of the rated current:
 /// a probe measures about a hold, it does not move the armature.
 pub const PROBE_MAX_SHARE: f32 = 0.1;
@@ -102,6 +107,8 @@ pub struct Install {
     pub control: control::Config,
     /// The analog input.
     pub analog: analog::Config,
+    /// The link's timeout.
+    pub link: liveness::Config,
 }
 
 /// What the main loop asks of the interrupt.
@@ -197,11 +204,12 @@ pub struct Telemetered {
     pub sample: Sample,
 }
 
-/// The three queues between the halves.
+/// The three queues between the halves, and the main loop's pulse.
 pub struct Queues {
     orders: Queue<Ticket, ORDER_SLOTS>,
     answers: Queue<Answer, ANSWER_SLOTS>,
     samples: Queue<Telemetered, SAMPLE_SLOTS>,
+    pulse: Pulse,
 }
 
 impl Default for Queues {
@@ -218,6 +226,7 @@ impl Queues {
             orders: Queue::new(),
             answers: Queue::new(),
             samples: Queue::new(),
+            pulse: Pulse::new(),
         }
     }
 
@@ -226,16 +235,19 @@ impl Queues {
         let (op, oc) = self.orders.split();
         let (ap, ac) = self.answers.split();
         let (sp, sc) = self.samples.split();
+        let pulse = &self.pulse;
         (
             MainEnds {
                 orders: op,
                 answers: ac,
                 samples: sc,
+                pulse,
             },
             IsrEnds {
                 orders: oc,
                 answers: ap,
                 samples: sp,
+                pulse,
             },
         )
     }
@@ -249,6 +261,8 @@ pub struct MainEnds<'q> {
     pub answers: Consumer<'q, Answer>,
     /// Telemetry in.
     pub samples: Consumer<'q, Telemetered>,
+    /// Its passes and the requests it decodes, for the interrupt's liveness checks.
+    pub pulse: &'q Pulse,
 }
 
 /// The interrupt's ends of the queues.
@@ -259,6 +273,8 @@ pub struct IsrEnds<'q> {
     pub answers: Producer<'q, Answer>,
     /// Telemetry out.
     pub samples: Producer<'q, Telemetered>,
+    /// The main loop's passes and requests.
+    pub pulse: &'q Pulse,
 }
 
 /// What the interrupt knows at a tick's start.
@@ -357,6 +373,8 @@ impl Cycles {
 pub struct Controller<C> {
     cfg: control::Config,
     analog: analog::Config,
+    link: liveness::Config,
+    watch: liveness::Watch,
     state: control::State,
     analog_state: analog::State,
     guard: guard::Config,
@@ -402,6 +420,8 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         Self {
             cfg: install.control,
             analog: install.analog,
+            link: install.link,
+            watch: liveness::Watch::default(),
             state: install.control.initial_state(),
             analog_state: analog::State::default(),
             guard: guard::Config::for_period(period),
@@ -504,6 +524,19 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
             let _ = ends.orders.dequeue();
             // The main loop has at most one order in flight: the answer fits.
             let _ = ends.answers.enqueue(Answer { id, outcome });
+        }
+
+        let seen = self
+            .watch
+            .check(&self.link, ends.pulse, self.ticks, self.drives_for_link());
+        if seen.main_loop_stalled {
+            self.stop(bridge, Fault::MainLoopStalled);
+        } else if seen.link_lost {
+            if self.link.holds() && self.mode.armed() {
+                self.state.supervisor.note(Fault::LinkTimeout);
+            } else {
+                self.stop(bridge, Fault::LinkTimeout);
+            }
         }
 
         if self.analog.source() != SetpointSource::Link {
@@ -635,9 +668,27 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
         }
         Ticked {
             status,
-            feed: outcome.feed,
+            // A stalled main loop no longer serves the link: the watchdogs end it.
+            feed: outcome.feed && !seen.main_loop_stalled,
             restore_outputs,
         }
+    }
+
+    /// The board drives the coil for the link: armed with the set point from it, or
+    /// commissioning.
+    fn drives_for_link(&self) -> bool {
+        (self.mode.armed() && self.analog.source() == SetpointSource::Link)
+            || self.mode == Mode::Commissioning
+    }
+
+    /// Ends a commissioning in progress, latches `fault` and coasts.
+    fn stop<P: SetDutyCycle, O: OutputPin>(&mut self, bridge: &mut HBridge<P, O>, fault: Fault) {
+        if self.mode == Mode::Commissioning {
+            self.identification = None;
+            self.last_drive_v = 0.0;
+            self.commissioned = Commissioned::Aborted(commission::Abort::Fault);
+        }
+        self.trip(bridge, fault);
     }
 
     /// Adds the tick's `sample` to the capture's sample `n`, which spans `decimation` ticks
@@ -870,6 +921,7 @@ impl<C: AsRef<[Sample]> + AsMut<[Sample]>> Controller<C> {
                 let supervisor = self.state.supervisor;
                 self.cfg = install.control;
                 self.analog = install.analog;
+                self.link = install.link;
                 self.state = self.cfg.initial_state();
                 self.state.supervisor = supervisor;
                 self.analog_state = analog::State::default();
@@ -1051,7 +1103,7 @@ pub fn boot<F: embedded_storage::nor_flash::NorFlash>(
 ) -> Result<Boot, crate::config::Error> {
     let saved = save.map(|p| store.save(p));
     let stored = store.load().and_then(|p| match p.build(board) {
-        Ok((control, analog)) => Ok((p, Install { control, analog })),
+        Ok(install) => Ok((p, install)),
         Err(e) => Err(LoadError::Invalid(Invalid::from(e))),
     });
     match stored {
@@ -1061,18 +1113,15 @@ pub fn boot<F: embedded_storage::nor_flash::NorFlash>(
             saved,
             install,
         }),
-        Err(why) => {
-            let (control, analog) = defaults.build(board)?;
-            Ok(Boot {
-                params: *defaults,
-                source: match why {
-                    LoadError::Empty => Source::Defaults,
-                    other => Source::Fallback(other),
-                },
-                saved,
-                install: Install { control, analog },
-            })
-        }
+        Err(why) => Ok(Boot {
+            params: *defaults,
+            source: match why {
+                LoadError::Empty => Source::Defaults,
+                other => Source::Fallback(other),
+            },
+            saved,
+            install: defaults.build(board)?,
+        }),
     }
 }
 
@@ -1103,6 +1152,7 @@ struct Pending {
 /// The main loop's half: frames in, frames out, parameters.
 pub struct Dispatcher {
     board: Board,
+    build: Build<'static>,
     defaults: Params,
     params: Params,
     source: Source<'static>,
@@ -1114,6 +1164,15 @@ pub struct Dispatcher {
     next_id: u8,
     signals: u16,
     rejected: u32,
+    /// Bytes at the front of `tx` up to the end of the rejection waiting there (0: none).
+    rejection_end: usize,
+    /// Main-loop passes ([`Dispatcher::poll`]): the dispatcher's clock, one per tick
+    /// while the main loop keeps up.
+    passes: u32,
+    /// The pass of the last rejection sent.
+    rejection_pass: Option<u32>,
+    /// Passes between two rejections sent.
+    rejection_passes: u32,
     dropped: u32,
     action: Option<Action>,
 }
@@ -1128,12 +1187,19 @@ pub struct Counts {
 }
 
 impl Dispatcher {
-    /// After a start: `boot` says what the parameters are; the [`Message::Started`]
-    /// announcement is the first frame out.
+    /// After a start of the firmware `build`: `boot` says what the parameters are; the
+    /// [`Message::Started`] announcement is the first frame out.
     #[must_use]
-    pub fn new(board: Board, defaults: Params, boot: &Boot, capacity: u16) -> Self {
+    pub fn new(
+        board: Board,
+        build: Build<'static>,
+        defaults: Params,
+        boot: &Boot,
+        capacity: u16,
+    ) -> Self {
         let mut d = Self {
             board,
+            build,
             defaults,
             params: boot.params,
             source: boot.source,
@@ -1145,6 +1211,10 @@ impl Dispatcher {
             next_id: 0,
             signals: 0,
             rejected: 0,
+            rejection_end: 0,
+            passes: 0,
+            rejection_pass: None,
+            rejection_passes: math::whole_ticks(board.rate_hz / REJECTIONS_PER_S),
             dropped: 0,
             action: None,
         };
@@ -1187,6 +1257,7 @@ impl Dispatcher {
     /// The first `n` bytes of [`Dispatcher::tx`] were sent.
     pub fn sent(&mut self, n: usize) {
         let n = n.min(self.tx.len());
+        self.rejection_end = self.rejection_end.saturating_sub(n);
         let rest = self.tx.len().saturating_sub(n);
         to_front(&mut self.tx, n);
         self.tx.truncate(rest);
@@ -1201,8 +1272,10 @@ impl Dispatcher {
         }
     }
 
-    /// Takes received bytes until a request needs the interrupt; returns how many were
-    /// taken (give the rest again after [`Dispatcher::poll`] has seen the answer).
+    /// Takes received bytes until a request needs the interrupt, or until the transmit
+    /// buffer lacks the room of a reply (a reply is never dropped: the request waits);
+    /// returns how many were taken (give the rest again after [`Dispatcher::poll`] has
+    /// seen the answer, or the line has taken some of the transmit buffer).
     pub fn receive(
         &mut self,
         bytes: &[u8],
@@ -1211,7 +1284,10 @@ impl Dispatcher {
     ) -> usize {
         let mut taken = 0usize;
         for &b in bytes {
-            if self.pending.is_some() || self.action.is_some() {
+            if self.pending.is_some()
+                || self.action.is_some()
+                || TX_CAPACITY.saturating_sub(self.tx.len()) < MAX_FRAME
+            {
                 break;
             }
             taken = taken.saturating_add(1);
@@ -1235,7 +1311,10 @@ impl Dispatcher {
                 continue;
             };
             match protocol::decode::<Request>(raw) {
-                Ok(r) => self.handle(r.seq, r.command, ends, storage),
+                Ok(r) => {
+                    ends.pulse.request_received();
+                    self.handle(r.seq, r.command, ends, storage);
+                }
                 Err(e) => self.reject(e),
             }
         }
@@ -1245,6 +1324,8 @@ impl Dispatcher {
     /// Completes a request the interrupt has answered, and turns telemetry samples into
     /// frames (dropping them when the link is behind).
     pub fn poll(&mut self, ends: &mut MainEnds<'_>) {
+        ends.pulse.main_loop_ran();
+        self.passes = self.passes.wrapping_add(1);
         if let Some(p) = self.pending {
             if let Some(answer) = ends.answers.dequeue() {
                 if answer.id == p.id {
@@ -1276,10 +1357,25 @@ impl Dispatcher {
         }
     }
 
+    /// Counts a frame it could not read and answers it with [`Message::Rejected`], unless
+    /// the last rejection is still waiting to be sent or was sent less than
+    /// `1 / REJECTIONS_PER_S` ago ([`REJECTIONS_PER_S`]), or the answer would leave less
+    /// than two frames' room (the reserve telemetry also keeps): line noise or a babbling
+    /// host never crowd out a reply.
     #[inline(never)]
     fn reject(&mut self, e: FrameError) {
         self.rejected = self.rejected.saturating_add(1);
-        self.send(&Message::Rejected(e));
+        let due = self
+            .rejection_pass
+            .is_none_or(|at| self.passes.wrapping_sub(at) >= self.rejection_passes);
+        if due
+            && self.rejection_end == 0
+            && TX_CAPACITY.saturating_sub(self.tx.len()) >= 2 * MAX_FRAME
+        {
+            self.send(&Message::Rejected(e));
+            self.rejection_end = self.tx.len();
+            self.rejection_pass = Some(self.passes);
+        }
     }
 
     fn send(&mut self, m: &Message<'_>) {
@@ -1332,6 +1428,7 @@ impl Dispatcher {
         let then = Then::Reply;
         match command {
             Command::Status => self.order(seq, Order::Status, then, ends),
+            Command::Heartbeat => self.reply(seq, Reply::Done),
             Command::Arm => self.order(seq, Order::Arm, then, ends),
             Command::Disarm => self.order(seq, Order::Disarm, then, ends),
             Command::Clear => self.order(seq, Order::Clear, then, ends),
@@ -1402,9 +1499,9 @@ impl Dispatcher {
                 }
                 match candidate.build(&self.board) {
                     Err(e) => self.reply(seq, Reply::Refused(Refusal::Invalid(e.into()))),
-                    Ok((control, analog)) => self.order(
+                    Ok(install) => self.order(
                         seq,
-                        Order::Install(Install { control, analog }),
+                        Order::Install(install),
                         Then::Commit {
                             params: candidate,
                             source: self.source,
@@ -1421,9 +1518,9 @@ impl Dispatcher {
                         seq,
                         Reply::Refused(Refusal::Load(LoadError::Invalid(e.into()))),
                     ),
-                    Ok((control, analog)) => self.order(
+                    Ok(install) => self.order(
                         seq,
-                        Order::Install(Install { control, analog }),
+                        Order::Install(install),
                         Then::Commit {
                             params: p,
                             source: Source::Stored,
@@ -1435,9 +1532,9 @@ impl Dispatcher {
             },
             Command::Defaults => match self.defaults.build(&self.board) {
                 Err(e) => self.reply(seq, Reply::Refused(Refusal::Invalid(e.into()))),
-                Ok((control, analog)) => self.order(
+                Ok(install) => self.order(
                     seq,
-                    Order::Install(Install { control, analog }),
+                    Order::Install(install),
                     Then::Commit {
                         params: self.defaults,
                         source: Source::Defaults,
@@ -1556,6 +1653,7 @@ impl Dispatcher {
                 s.params = self.source;
                 s.unsaved = self.unsaved;
                 s.frames_rejected = self.rejected;
+                s.build = self.build;
                 s.telemetry_dropped = s.telemetry_dropped.saturating_add(self.dropped);
                 self.reply(p.seq, Reply::Status(s));
                 return;

@@ -37,6 +37,7 @@
 //! | [`params`] | every parameter by name, validated as at build time |
 //! | [`store`] | parameters in flash, power-fail safe, with a version and a CRC |
 //! | [`analog`] | the optional analog set point (0-10 V or 4-20 mA, broken wire as a fault) |
+//! | [`liveness`] | the link's timeout and the main loop's deadline: an armed board never outlives its host |
 //!
 //! ## What the paper gets wrong or leaves loose, and what the code does
 //!
@@ -128,6 +129,7 @@ pub mod control;
 pub mod device;
 pub mod guard;
 pub mod law;
+pub mod liveness;
 pub mod math;
 pub mod model;
 pub mod observer;

@@ -138,6 +138,22 @@ pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
     }
 }
 
+/// The whole ticks in `t` ticks' worth of time, rounded down, at least one and at most
+/// 4e9 (a count of ticks from a duration times a rate; `NaN` gives one).
+#[must_use]
+pub fn whole_ticks(t: f32) -> u32 {
+    if t >= 4.0e9 {
+        4_000_000_000
+    } else if t >= 1.0 {
+        // In [1, 4e9): the truncation is the intended rounding down.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = t as u32;
+        n
+    } else {
+        1
+    }
+}
+
 /// `true` when every value is finite.
 #[inline]
 #[must_use]

@@ -3,8 +3,9 @@
 //! actuator file; stored in flash by [`crate::store`].
 //!
 //! Names are the actuator file's dotted field names (`mechanics.mass_kg`,
-//! `coil.rated_current_a`, `board.supply_v`, `tuning.alpha_per_s`, ...) and `setpoint.*`
-//! for the analog set point ([`crate::analog`]). A change is validated with everything
+//! `coil.rated_current_a`, `board.supply_v`, `tuning.alpha_per_s`, ...), `setpoint.*`
+//! for the analog set point ([`crate::analog`]) and `link.*` for the host's timeout
+//! ([`crate::liveness`]). A change is validated with everything
 //! else: the whole set must derive settings ([`Actuator::settings`]) that build, on this
 //! board ([`Board`]); a refusal names the field, its value and why, as the build does.
 //!
@@ -33,7 +34,9 @@ use serde::{Deserialize, Serialize};
 use crate::actuator::{Actuator, Magnetics};
 use crate::analog;
 use crate::config::{self, Error};
-use crate::control::{self, Settings};
+use crate::control::Settings;
+use crate::device::Install;
+use crate::liveness;
 use crate::protocol::Value;
 
 /// Every parameter of the board.
@@ -43,6 +46,8 @@ pub struct Params {
     pub actuator: Actuator,
     /// The set point's source and filter.
     pub setpoint: analog::Settings,
+    /// The host's timeout.
+    pub link: liveness::Settings,
 }
 
 /// What a parameter holds.
@@ -82,8 +87,8 @@ pub const KIND_FIXED: &str = "the magnetic circuit's form is chosen in the actua
 /// The choices of `magnetics.kind`.
 pub const MAGNETICS_KINDS: [&str; 2] = ["geometry", "inductance"];
 
-/// Every parameter, in the order of the actuator file.
-pub const TABLE: [Info; 32] = [
+/// Every parameter, in the order of the actuator file, then the board's own.
+pub const TABLE: [Info; 34] = [
     number("mechanics.mass_kg"),
     number("mechanics.spring_n_per_m"),
     number("mechanics.preload_n"),
@@ -128,6 +133,12 @@ pub const TABLE: [Info; 32] = [
         fixed: None,
     },
     number("setpoint.filter_s"),
+    number("link.timeout_s"),
+    Info {
+        name: "link.on_timeout",
+        kind: Kind::Choice(&liveness::OnTimeout::NAMES),
+        fixed: None,
+    },
 ];
 
 /// The `tuning.*` parameters (the gains `hil-sim tune` chose, or the derived defaults).
@@ -181,6 +192,7 @@ enum Field<'a> {
     Number(&'a mut f32),
     Flag(&'a mut bool),
     Source(&'a mut analog::Source),
+    OnTimeout(&'a mut liveness::OnTimeout),
     Kind(u8),
 }
 
@@ -191,6 +203,7 @@ impl Params {
         Self {
             actuator,
             setpoint: analog::Settings::default(),
+            link: liveness::Settings::default(),
         }
     }
 
@@ -261,11 +274,13 @@ impl Params {
             29 => number(&mut a.tolerance.resistance),
             30 => Ok(Field::Source(&mut self.setpoint.source)),
             31 => number(&mut self.setpoint.filter_s),
-            32..=35 => match &mut a.tuning {
+            32 => number(&mut self.link.timeout_s),
+            33 => Ok(Field::OnTimeout(&mut self.link.on_timeout)),
+            34..=37 => match &mut a.tuning {
                 Some(t) => match k {
-                    32 => number(&mut t.alpha_per_s),
-                    33 => number(&mut t.observer_rad_s),
-                    34 => number(&mut t.margin),
+                    34 => number(&mut t.alpha_per_s),
+                    35 => number(&mut t.observer_rad_s),
+                    36 => number(&mut t.margin),
                     _ => Ok(Field::Flag(&mut t.disturbance_follows_force)),
                 },
                 None => Err(Refused::Unknown),
@@ -285,6 +300,7 @@ impl Params {
             Field::Number(x) => Value::Number(*x),
             Field::Flag(b) => Value::Flag(*b),
             Field::Source(s) => Value::Choice(s.index()),
+            Field::OnTimeout(o) => Value::Choice(o.index()),
             Field::Kind(k) => Value::Choice(k),
         })
     }
@@ -307,6 +323,13 @@ impl Params {
                     param: "setpoint.source",
                     value: f32::from(c),
                     reason: config::Reason::AboveMax { max: 2.0 },
+                }))?;
+            }
+            (Field::OnTimeout(o), Value::Choice(c)) => {
+                *o = liveness::OnTimeout::from_index(c).ok_or(Refused::Invalid(Error {
+                    param: "link.on_timeout",
+                    value: f32::from(c),
+                    reason: config::Reason::AboveMax { max: 1.0 },
                 }))?;
             }
             _ => return Err(Refused::WrongKind),
@@ -338,15 +361,21 @@ impl Params {
         Ok(s)
     }
 
-    /// Validates and builds the controller and the analog input.
+    /// Validates and builds what the interrupt runs: the controller, the analog input and
+    /// the link's timeout.
     ///
     /// # Errors
-    /// As [`Params::settings`], and a bad `setpoint.*`.
-    pub fn build(&self, board: &Board) -> Result<(control::Config, analog::Config), Error> {
+    /// As [`Params::settings`], and a bad `setpoint.*` or `link.*`.
+    pub fn build(&self, board: &Board) -> Result<Install, Error> {
         let s = self.settings(board)?;
         let control = s.build()?;
         let analog = self.setpoint.build(s.plant.stroke_m, control.ts_s())?;
-        Ok((control, analog))
+        let link = self.link.build(board.rate_hz)?;
+        Ok(Install {
+            control,
+            analog,
+            link,
+        })
     }
 }
 
@@ -394,6 +423,8 @@ mod tests {
             "tolerance.resistance" => number(&mut a.tolerance.resistance),
             "setpoint.source" => Ok(Field::Source(&mut p.setpoint.source)),
             "setpoint.filter_s" => number(&mut p.setpoint.filter_s),
+            "link.timeout_s" => number(&mut p.link.timeout_s),
+            "link.on_timeout" => Ok(Field::OnTimeout(&mut p.link.on_timeout)),
             _ if name.starts_with("magnetics.geometry.") => match &mut a.magnetics {
                 Magnetics::Geometry {
                     gaps,
@@ -455,6 +486,7 @@ mod tests {
             Field::Number(x) => (0, at(core::ptr::from_mut(x).cast())),
             Field::Flag(x) => (1, at(core::ptr::from_mut(x).cast())),
             Field::Source(x) => (2, at(core::ptr::from_mut(x).cast())),
+            Field::OnTimeout(x) => (4, at(core::ptr::from_mut(x).cast())),
             Field::Kind(k) => (3, isize::from(k)),
         })
     }
@@ -555,12 +587,19 @@ mod tests {
         let mut q = Params::new(Actuator::PRODUCT);
         q.setpoint.filter_s = 2.0;
         assert_eq!(q.build(&BOARD).unwrap_err().param, "setpoint.filter_s");
+        let mut q = Params::new(Actuator::PRODUCT);
+        q.set("link.timeout_s", Value::Number(0.01)).unwrap();
+        assert_eq!(q.build(&BOARD).unwrap_err().param, "link.timeout_s");
+        assert!(matches!(
+            q.set("link.on_timeout", Value::Choice(2)),
+            Err(Refused::Invalid(e)) if e.param == "link.on_timeout"
+        ));
     }
 
     #[test]
     fn the_defaults_build_as_the_firmware_builds_them() {
         let p = Params::new(Actuator::PRODUCT);
-        let (c, _) = p.build(&BOARD).unwrap();
+        let c = p.build(&BOARD).unwrap().control;
         let direct = Actuator::PRODUCT.settings().unwrap().build().unwrap();
         assert_eq!(c, direct);
         // Tuning written explicitly from an actuator without tuning gives the same gains.
@@ -570,7 +609,7 @@ mod tests {
         let alpha = p.get("tuning.alpha_per_s").unwrap();
         p.set("tuning.alpha_per_s", alpha).unwrap();
         assert_eq!(
-            p.build(&BOARD).unwrap().0,
+            p.build(&BOARD).unwrap().control,
             a.settings().unwrap().build().unwrap()
         );
     }

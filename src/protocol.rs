@@ -76,7 +76,7 @@ use crate::config;
 pub const BAUD: u32 = 460_800;
 
 /// Version of the message definitions; the first byte of every frame.
-pub const VERSION: u8 = 3;
+pub const VERSION: u8 = 4;
 /// Largest frame before COBS: version, message and CRC \[bytes\].
 pub const MAX_RAW: usize = 250;
 /// Largest frame on the wire, delimiter included \[bytes\]: COBS adds one byte per 254 and
@@ -109,6 +109,10 @@ pub struct Request<'a> {
 pub enum Command<'a> {
     /// The board's state ([`Reply::Status`]).
     Status,
+    /// Nothing but "the host is alive" ([`Reply::Done`]): every request counts against
+    /// the link's timeout ([`crate::liveness`]); a host with nothing else to ask sends
+    /// this.
+    Heartbeat,
     /// Closed loop, holding the present position. Refused while a fault is latched, a
     /// sensor reads implausible, the bus is outside its window or (4-20 mA set point) the
     /// loop current is outside 3.6-21 mA.
@@ -470,6 +474,27 @@ pub struct Status<'a> {
     pub capture: CaptureState,
     /// Samples the board can capture.
     pub capture_capacity: u16,
+    /// The firmware running.
+    #[serde(borrow)]
+    pub build: Build<'a>,
+}
+
+/// A firmware build: its version and the commit it was built from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Build<'a> {
+    /// The `ema` package's version.
+    pub version: &'a str,
+    /// The commit (`git rev-parse --short=12 HEAD` at build time; `unknown` outside a
+    /// repository).
+    pub id: &'a str,
+}
+
+impl Build<'static> {
+    /// This build of the `ema` package.
+    pub const THIS: Build<'static> = Build {
+        version: env!("CARGO_PKG_VERSION"),
+        id: env!("EMA_BUILD_ID"),
+    };
 }
 
 /// Where the parameters in use came from.

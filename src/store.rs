@@ -11,11 +11,23 @@
 //! and erase of a save and reads back after each.
 //!
 //! **The record.** On top, the set is stored as one record
-//! `FORMAT (u16 LE) | postcard(Params) | CRC-32C (u32 LE)`: a set written by another
-//! format is refused by version, a set whose bytes changed by the CRC, and a set that
-//! decodes is still validated as a build validates an actuator file before it is used
-//! ([`crate::params::Params::build`], by the caller); in every case the board falls back
-//! to its built-in defaults and says why ([`LoadError`]).
+//! `FORMAT (u16 LE) | postcard(Params) | CRC-32C (u32 LE)`: a set whose bytes changed is
+//! refused by its CRC; a set of an earlier format is migrated (each format's layout is
+//! kept here, and what a later format added takes its default); a set of a format this
+//! firmware does not know (a later one) is refused by version; a set that decodes is
+//! still validated as a build validates an actuator file before it is used
+//! ([`crate::params::Params::build`], by the caller). A refused set stays in the flash
+//! until a save replaces it, and the board runs its built-in defaults and says why
+//! ([`LoadError`]); the host tool backs a set up and restores it across a firmware that
+//! cannot read it (`bench backup`, `bench restore`).
+//!
+//! | format | layout | read as |
+//! |---|---|---|
+//! | 1 | the actuator, the set point's source and filter | format 2 with the link's default timeout |
+//! | 2 ([`FORMAT`]) | format 1, then the link's timeout and what it does on expiry ([`crate::liveness::Settings`]) | itself |
+//!
+//! A change of [`Params`]' encoding without a new format fails a test that pins the
+//! defaults' encoded bytes to the format number.
 //!
 //! **Blocking.** sequential-storage's operations are futures; with a flash whose
 //! operations complete at once (the chip's, which stalls the CPU while it programs) they
@@ -49,8 +61,16 @@ use sequential_storage::map::{MapConfig, MapStorage};
 use crate::params::Params;
 use crate::protocol::{LoadError, StoreError, CRC};
 
-/// Version of the stored record; a record of another version is not used.
-pub const FORMAT: u16 = 1;
+/// Version of the stored record this firmware writes (see the module documentation for
+/// the earlier ones it reads).
+pub const FORMAT: u16 = 2;
+
+/// Format 1's layout: [`Params`] before the link's timeout.
+#[derive(serde::Deserialize)]
+struct Format1 {
+    actuator: crate::actuator::Actuator,
+    setpoint: crate::analog::Settings,
+}
 /// The map key of the parameter set.
 pub const KEY: u8 = 1;
 /// Largest record \[bytes\].
@@ -136,10 +156,10 @@ pub fn encode(params: &Params, buf: &mut [u8; MAX_RECORD]) -> Result<usize, Stor
     len.checked_add(4).ok_or(StoreError::TooBig)
 }
 
-/// Decodes a record.
+/// Decodes a record, of this format or an earlier one (migrated).
 ///
 /// # Errors
-/// Another format version, a CRC mismatch, bytes that do not decode.
+/// A CRC mismatch, a format this firmware does not read, bytes that do not decode.
 pub fn decode(record: &[u8]) -> Result<Params, LoadError<'static>> {
     let n = record.len();
     let body_end = n
@@ -147,24 +167,31 @@ pub fn decode(record: &[u8]) -> Result<Params, LoadError<'static>> {
         .filter(|&e| e >= 2)
         .ok_or(LoadError::Decode)?;
     let (covered, crc) = record.split_at(body_end);
-    let mut version = [0u8; 2];
-    version.copy_from_slice(covered.get(..2).ok_or(LoadError::Decode)?);
-    let found = u16::from_le_bytes(version);
-    if found != FORMAT {
-        return Err(LoadError::Version {
-            found,
-            expected: FORMAT,
-        });
-    }
     let mut got = [0u8; 4];
     got.copy_from_slice(crc);
     if CRC.checksum(covered) != u32::from_le_bytes(got) {
         return Err(LoadError::Crc);
     }
+    let mut version = [0u8; 2];
+    version.copy_from_slice(covered.get(..2).ok_or(LoadError::Decode)?);
     let body = covered.get(2..).ok_or(LoadError::Decode)?;
-    match postcard::take_from_bytes::<Params>(body) {
-        Ok((p, [])) => Ok(p),
-        _ => Err(LoadError::Decode),
+    match u16::from_le_bytes(version) {
+        FORMAT => match postcard::take_from_bytes::<Params>(body) {
+            Ok((p, [])) => Ok(p),
+            _ => Err(LoadError::Decode),
+        },
+        1 => match postcard::take_from_bytes::<Format1>(body) {
+            Ok((old, [])) => Ok(Params {
+                actuator: old.actuator,
+                setpoint: old.setpoint,
+                link: crate::liveness::Settings::default(),
+            }),
+            _ => Err(LoadError::Decode),
+        },
+        found => Err(LoadError::Version {
+            found,
+            expected: FORMAT,
+        }),
     }
 }
 
@@ -378,6 +405,7 @@ impl<F: NorFlash> NorFlash for ReadOnly<F> {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use crate::actuator::Actuator;
 
@@ -397,16 +425,74 @@ mod tests {
             bad[byte] ^= 0x04;
             assert_eq!(decode(&bad[..n]), Err(LoadError::Crc), "{byte}");
         }
+        // A later format, sealed with its own CRC: refused by version.
         let mut other = rec;
-        other[0] = 2;
+        other[0] = 3;
+        let crc = CRC.checksum(&other[..n - 4]).to_le_bytes();
+        other[n - 4..n].copy_from_slice(&crc);
         assert_eq!(
             decode(&other[..n]),
             Err(LoadError::Version {
-                found: 2,
+                found: 3,
                 expected: FORMAT
             })
         );
         assert_eq!(decode(&rec[..3]), Err(LoadError::Decode));
+    }
+
+    /// A record sealed as the store seals one: `format`, `body`, the CRC.
+    fn sealed(format: u16, body: &[u8]) -> std::vec::Vec<u8> {
+        let mut rec = format.to_le_bytes().to_vec();
+        rec.extend_from_slice(body);
+        let crc = CRC.checksum(&rec).to_le_bytes();
+        rec.extend_from_slice(&crc);
+        rec
+    }
+
+    #[test]
+    fn a_format_1_set_is_migrated_with_the_links_default() {
+        #[derive(serde::Serialize)]
+        struct Written {
+            actuator: Actuator,
+            setpoint: crate::analog::Settings,
+        }
+        let mut a = Actuator::PRODUCT;
+        a.coil.turns = 72.0;
+        let setpoint = crate::analog::Settings {
+            source: crate::analog::Source::Current,
+            filter_s: 0.01,
+        };
+        let mut body = [0u8; MAX_RECORD];
+        let body = postcard::to_slice(
+            &Written {
+                actuator: a,
+                setpoint,
+            },
+            &mut body,
+        )
+        .unwrap();
+        let p = decode(&sealed(1, body)).unwrap();
+        assert_eq!((p.actuator, p.setpoint), (a, setpoint));
+        assert_eq!(p.link, crate::liveness::Settings::default());
+        // Format 1's bytes under format 2's number do not decode (they are shorter).
+        assert_eq!(decode(&sealed(FORMAT, body)), Err(LoadError::Decode));
+    }
+
+    /// The encoded defaults, pinned to the format: a change of the parameters' encoding
+    /// (a field added, removed, moved or retyped) fails here until [`FORMAT`] is raised
+    /// and the old layout is read as a migration. (A change of the product's default
+    /// values fails it too: then only the pinned figures change.)
+    #[test]
+    fn the_defaults_encoding_is_pinned_to_the_format() {
+        let mut rec = [0; MAX_RECORD];
+        let n = encode(&Params::new(Actuator::PRODUCT), &mut rec).unwrap();
+        let crc = u32::from_le_bytes(rec[n - 4..n].try_into().unwrap());
+        assert_eq!(
+            (FORMAT, n, crc),
+            (2, 139, 0xaaee_6d09),
+            "the parameters' encoding changed: raise store::FORMAT and migrate the old one \
+             (got {n} bytes, CRC {crc:#010x})"
+        );
     }
 
     #[test]

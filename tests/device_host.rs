@@ -11,7 +11,7 @@ use std::convert::Infallible;
 
 use ema::bridge::HBridge;
 use ema::device::Queues;
-use session::{Session, CAPTURE, FRAMES_HASH, FRAMES_LEN};
+use session::{Session, CAPTURE, FRAMES_HASH, FRAMES_LEN, LINK_TIMEOUT_TICKS, MAIN_LOOP_TICKS};
 
 struct Pwm;
 impl embedded_hal::pwm::ErrorType for Pwm {
@@ -51,6 +51,21 @@ fn the_session_answers_as_scripted_and_its_frames_are_the_saved_ones() {
     assert!((out.x_m - 3e-3).abs() < 30e-6, "{}", out.x_m);
     assert_eq!(out.captured, CAPTURE);
     assert!(out.telemetry >= 20, "{}", out.telemetry);
+    // The silent host: disarmed one tick after the timeout (counted from the tick that
+    // saw the arming request), the tick that carried the order aside.
+    assert_eq!(LINK_TIMEOUT_TICKS, 10_000);
+    assert!(
+        (LINK_TIMEOUT_TICKS + 1..=LINK_TIMEOUT_TICKS + 2).contains(&out.link_lost_after),
+        "{}",
+        out.link_lost_after
+    );
+    // The hung main loop: no feed one tick after the deadline.
+    assert_eq!(MAIN_LOOP_TICKS, 400);
+    assert!(
+        (MAIN_LOOP_TICKS + 1..=MAIN_LOOP_TICKS + 2).contains(&out.main_stalled_after),
+        "{}",
+        out.main_stalled_after
+    );
     assert_eq!(
         (out.hash, out.len),
         (FRAMES_HASH, FRAMES_LEN),

@@ -94,6 +94,10 @@ pub fn is_actuator_text(text: &str) -> bool {
         .any(|l| l.trim_start().starts_with("[mechanics]"))
 }
 
+/// The tables of a board's backup that are the board's, not the actuator's (`bench
+/// backup`): an actuator file may carry them, and the actuator is read without them.
+pub const BOARD_TABLES: [&str; 2] = ["setpoint", "link"];
+
 /// Parses and checks an actuator file; `origin` names it in errors. Every setting is
 /// derived once, so a file that loads is a file the firmware build accepts.
 ///
@@ -101,10 +105,22 @@ pub fn is_actuator_text(text: &str) -> bool {
 /// TOML that does not parse or has an unknown, missing or mistyped field; a value the
 /// derivation refuses, by its name in the file.
 pub fn parse(text: &str, origin: &str) -> Result<Actuator, LoadError> {
-    let act: Actuator = toml::from_str(text).map_err(|e| LoadError::Toml {
+    let toml_error = |e: &dyn std::fmt::Display| LoadError::Toml {
         origin: origin.to_owned(),
         message: e.to_string(),
-    })?;
+    };
+    // A board's backup (`bench backup`) adds the board's own tables: the actuator is the
+    // rest. (Parsed whole otherwise, so that an error keeps its line.)
+    let mut table: toml::Table = toml::from_str(text).map_err(|e| toml_error(&e))?;
+    let board = BOARD_TABLES
+        .iter()
+        .filter(|t| table.remove(**t).is_some())
+        .count();
+    let act: Actuator = if board > 0 {
+        table.try_into().map_err(|e| toml_error(&e))?
+    } else {
+        toml::from_str(text).map_err(|e| toml_error(&e))?
+    };
     act.settings().map_err(|e| LoadError::Invalid {
         origin: origin.to_owned(),
         error: Error::Actuator(e),

@@ -533,6 +533,7 @@ fn a_solenoid_far_off_its_file_has_its_measured_whole_set_on_the_board_and_its_a
     let mut rig = Rig::new(Options {
         actuator: file,
         noise: true,
+        ..Options::default()
     });
     rig.inject.send(Injection::Surfaces(1.3)).unwrap();
     let mech = file.mechanics;

@@ -11,15 +11,22 @@
 //! applies together at the next period boundary. The board boots disarmed, with the
 //! bridge coasting. The main loop serves the bench link (USART2 by DMA, `link`) with
 //! `ema::device::Dispatcher`, and the parameters live in flash sectors 1 and 2 through
-//! `ema::store`, loaded at start (a damaged or incompatible set falls back to the
-//! built-in defaults and says so) and saved at the next start, before the watchdogs run. Pins, clocks and every other hardware fact are in [`board`]; the register
+//! `ema::store`, loaded at start (an earlier format migrated; a damaged or unknown set
+//! falls back to the built-in defaults and says so) and saved at the next start, before
+//! the control runs. Pins, clocks and every other hardware fact are in [`board`]; the
+//! register
 //! values in [`regs`]; register-level set-up in `hw`; start-up, the interrupts, the status
 //! line and the panic and fault handlers in `app`; what survives a reset in [`reset`].
 //!
 //! Safety measures, in the order they act:
 //! * the board pulls the bridge lines low, so the bridge coasts through reset and boot;
-//! * the independent watchdog (2 ms) runs before the clock set-up, so a crystal that does
-//!   not start ends in a reset, recorded as such;
+//! * the independent watchdog runs from the first line of start-up with a boot timeout
+//!   (`board::IWDG_BOOT`, 2.7 s at least) longer than everything start-up does, each of
+//!   its waits bounded (the crystal 100 ms, the PLL 2 ms, a deferred flash save): a good
+//!   board never starts with a watchdog reset, a crystal that does not start is named
+//!   (`StartError::ClockSetup`), and a start refused three times in a row stays refused,
+//!   logging why, instead of cycling through resets; start-up tightens it to 2 ms
+//!   (`board::IWDG_RUN`) just before the control interrupt starts;
 //! * start-up keeps the timer's main output off (all three lines driven low) until the
 //!   end, measures the current-sensor zero with the bridge off (an implausible zero
 //!   latches `Fault::CurrentOffset`), and refuses to run unless the update event falls at
@@ -32,7 +39,12 @@
 //!   implausible input as a fault with the bridge coasting;
 //! * the guard (`ema::guard`) latches `Fault::Overrun` for a tick that starts more than 1.5
 //!   periods after the previous one, ends with the next conversion waiting, or ends after
-//!   the period boundary its writes were for; only on-time ticks feed the watchdogs;
+//!   the period boundary its writes were for; only on-time ticks feed the watchdogs, and
+//!   only while the main loop checks in (`ema::liveness`: a main loop silent for 20 ms
+//!   latches `Fault::MainLoopStalled`, the bridge coasts and the watchdogs end the run;
+//!   the next start keeps the fault);
+//! * armed for the link, a host silent for `link.timeout_s` disarms the board with
+//!   `Fault::LinkTimeout` latched (`ema::liveness`);
 //! * the window watchdog's early wake-up (at most 292.6 us after the last feed) coasts the
 //!   bridge, its reset follows one count later; the independent watchdog (2 ms) is the
 //!   last resort; after a watchdog reset the controller starts with `Fault::Overrun`

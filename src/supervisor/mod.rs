@@ -73,10 +73,16 @@ pub enum Fault {
     /// The 4-20 mA set-point loop reads outside 3.6-21 mA for a millisecond: a broken or
     /// shorted wire (only with the analog set point, `setpoint.source = current_4_20ma`).
     AnalogWireBreak = 21,
+    /// The host fell silent for longer than `link.timeout_s` while the board drove the
+    /// coil for it ([`crate::liveness`]).
+    LinkTimeout = 22,
+    /// The main loop stopped checking in: the link is not served and the watchdogs are no
+    /// longer fed ([`crate::liveness`]).
+    MainLoopStalled = 23,
 }
 
 /// Number of fault codes (codes run `1..=FAULT_COUNT`).
-pub const FAULT_COUNT: usize = 21;
+pub const FAULT_COUNT: usize = 23;
 
 impl Fault {
     /// Raised by the detectors that run behind the law ([`monitor`]): a tick that ends
@@ -119,6 +125,8 @@ impl Fault {
         Fault::ModelBounds,
         Fault::HardwareTrip,
         Fault::AnalogWireBreak,
+        Fault::LinkTimeout,
+        Fault::MainLoopStalled,
     ];
 
     /// The stable numeric code.
@@ -158,6 +166,8 @@ impl Fault {
             Fault::ModelBounds => "model_bounds",
             Fault::HardwareTrip => "hardware_trip",
             Fault::AnalogWireBreak => "analog_wire_break",
+            Fault::LinkTimeout => "link_timeout",
+            Fault::MainLoopStalled => "main_loop_stalled",
         }
     }
 
@@ -280,16 +290,22 @@ impl State {
         match self.latched {
             Some(first) => first,
             None => {
-                if let Some(c) = self.counts.get_mut(fault.index()) {
-                    *c = c.saturating_add(1);
-                }
+                self.note(fault);
                 self.latched = Some(fault);
                 fault
             }
         }
     }
 
-    /// How many times `fault` has latched since power-up (saturating).
+    /// Counts `fault` without latching it: an event the board reacts to without
+    /// stopping (a link timeout when `link.on_timeout = hold`).
+    pub fn note(&mut self, fault: Fault) {
+        if let Some(c) = self.counts.get_mut(fault.index()) {
+            *c = c.saturating_add(1);
+        }
+    }
+
+    /// How many times `fault` has latched (or been noted) since power-up (saturating).
     #[must_use]
     pub fn count(&self, fault: Fault) -> u16 {
         self.counts.get(fault.index()).copied().unwrap_or(0)
@@ -345,6 +361,11 @@ mod tests {
         assert_eq!(s.latched(), None);
         s.trip(Fault::OverCurrent);
         assert_eq!(s.count(Fault::OverCurrent), 2);
+        // Noted: counted, not latched.
+        s.clear();
+        s.note(Fault::LinkTimeout);
+        assert_eq!(s.latched(), None);
+        assert_eq!(s.count(Fault::LinkTimeout), 1);
     }
 
     #[test]
@@ -354,7 +375,11 @@ mod tests {
             assert_eq!(Fault::from_code(f.code()), Some(*f));
         }
         assert_eq!(Fault::from_code(0), None);
-        assert_eq!(Fault::from_code(22), None);
+        assert_eq!(Fault::from_code(24), None);
+        assert_eq!(
+            Fault::MainLoopStalled.to_string(),
+            "main_loop_stalled (code 23)"
+        );
         assert_eq!(Fault::OverCurrent.to_string(), "over_current (code 6)");
         assert_eq!(Fault::HardwareTrip.to_string(), "hardware_trip (code 20)");
         // Names are unique (logs and files name faults by them).

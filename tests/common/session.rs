@@ -13,14 +13,15 @@
 #![allow(dead_code)]
 
 use ema::actuator::Actuator;
-use ema::bridge::HBridge;
-use ema::device::{Boot, Controller, Dispatcher, Inputs, Install, IsrEnds, MainEnds, Storage};
+use ema::bridge::{HBridge, Mode as BridgeMode};
+use ema::device::{Boot, Controller, Dispatcher, Inputs, IsrEnds, MainEnds, Storage};
 use ema::guard::{End, Start};
 use ema::params::{Board, Params};
 use ema::protocol::{
-    self, CaptureState, Command, FrameError, Framer, LoadError, Message, Mode, Refusal, Reply,
-    Request, Sample, Signal, Source, Trigger, Value, MAX_FRAME,
+    self, Build, CaptureState, Command, FrameError, Framer, LoadError, Message, Mode, Refusal,
+    Reply, Request, Sample, Signal, Source, Trigger, Value, MAX_FRAME,
 };
+use ema::supervisor::Fault;
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
@@ -40,9 +41,21 @@ pub const COMMISSIONING_TICKS: u32 = 300;
 
 /// FNV-1a (64 bit) of every byte the board sent, in order (the host computes it: see
 /// `tests/device_host.rs`).
-pub const FRAMES_HASH: u64 = 0x2115_0b25_d9af_ad2f;
+pub const FRAMES_HASH: u64 = 0x0629_2c60_5855_5c7e;
 /// Bytes the board sent.
-pub const FRAMES_LEN: usize = 5428;
+pub const FRAMES_LEN: usize = 16094;
+
+/// The build the session's board reports (fixed, so that the frames' hash does not
+/// depend on the commit).
+pub const BUILD: Build<'static> = Build {
+    version: "0.0.0",
+    id: "session",
+};
+
+/// The link's timeout in ticks (the default, at [`BOARD`]'s rate).
+pub const LINK_TIMEOUT_TICKS: u32 = (ema::liveness::DEFAULT_TIMEOUT_S * BOARD.rate_hz) as u32;
+/// The main loop's deadline in ticks.
+pub const MAIN_LOOP_TICKS: u32 = (ema::liveness::MAIN_LOOP_DEADLINE_S * BOARD.rate_hz) as u32;
 
 /// Nothing stored.
 pub struct Empty;
@@ -115,6 +128,9 @@ pub struct Cost {
     pub with_order: Spread,
     /// Commissioning: the codes checked, the identification stepped, the bridge driven.
     pub commissioning: Spread,
+    /// The main loop's passes: the dispatcher taking bytes (decoding, answering,
+    /// validating and building a parameter set), and its polls.
+    pub main_pass: Spread,
 }
 
 /// What the session saw.
@@ -130,6 +146,12 @@ pub struct Outcome {
     pub captured: usize,
     /// The position 0.17 s after the move's start, before disarming \[m\].
     pub x_m: f32,
+    /// Ticks from the arming request to the tick that disarmed with `link_timeout`, the
+    /// host silent.
+    pub link_lost_after: u32,
+    /// Ticks from the main loop's last pass to the first tick that did not feed the
+    /// watchdogs, with `main_loop_stalled` latched and the bridge coasting.
+    pub main_stalled_after: u32,
     /// The tick's cost.
     pub cost: Cost,
 }
@@ -153,6 +175,10 @@ pub struct Session<'q, P: SetDutyCycle, O: OutputPin> {
     requesting: bool,
     /// The bare control tick's bridge.
     shadow: HBridge<P, O>,
+    /// The main loop hangs: the ticks run without it.
+    main_hung: bool,
+    /// The last tick fed the watchdogs.
+    fed: bool,
 }
 
 /// An answer, as far as the script checks it.
@@ -161,8 +187,16 @@ pub enum Answer {
     Done,
     Refused(Kind),
     Value(Value),
-    Status { mode: Mode, capture: CaptureState },
-    Chunk { offset: u16, total: u16, n: usize },
+    Status {
+        mode: Mode,
+        capture: CaptureState,
+        fault: Option<u8>,
+    },
+    Chunk {
+        offset: u16,
+        total: u16,
+        n: usize,
+    },
     Other,
 }
 
@@ -184,14 +218,13 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
     ) -> Result<Self, &'static str> {
         let params = Params::new(Actuator::PRODUCT);
         let settings = params.settings(&BOARD).map_err(|_| "settings")?;
-        let (control, analog) = params.build(&BOARD).map_err(|_| "build")?;
         let boot = Boot {
             params,
             source: Source::Defaults,
             saved: None,
-            install: Install { control, analog },
+            install: params.build(&BOARD).map_err(|_| "build")?,
         };
-        let dispatcher = Dispatcher::new(BOARD, params, &boot, CAPTURE as u16);
+        let dispatcher = Dispatcher::new(BOARD, BUILD, params, &boot, CAPTURE as u16);
         let controller = Controller::new(boot.install, PERIOD, [Sample::default(); CAPTURE]);
         let mut s = Self {
             controller,
@@ -208,6 +241,8 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
             answer: None,
             requesting: false,
             shadow,
+            main_hung: false,
+            fed: true,
         };
         s.drain()?;
         Ok(s)
@@ -244,6 +279,7 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
                         Reply::Status(s) => Answer::Status {
                             mode: s.mode,
                             capture: s.capture,
+                            fault: s.fault,
                         },
                         Reply::Capture(c) => {
                             self.out.captured += c.samples.len();
@@ -295,6 +331,7 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
             .controller
             .tick(&mut self.bridge, &inputs, &mut self.isr, End::default);
         let n = clock().wrapping_sub(t0);
+        self.fed = t.feed;
         self.plant.advance(&t.status.drive);
         self.ticks = self.ticks.wrapping_add(1);
         let c = &mut self.out.cost;
@@ -311,7 +348,13 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
                 c.armed_bare.add(bare);
             }
         }
+        if self.main_hung {
+            return Ok(());
+        }
+        let t0 = clock();
         self.dispatcher.poll(&mut self.main);
+        let n = clock().wrapping_sub(t0);
+        self.out.cost.main_pass.add(n);
         self.drain()
     }
 
@@ -335,7 +378,10 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
     ) -> Result<(), &'static str> {
         let mut rest = bytes;
         for _ in 0..100 {
+            let t0 = clock();
             let k = self.dispatcher.receive(rest, &mut self.main, &mut Empty);
+            let n = clock().wrapping_sub(t0);
+            self.out.cost.main_pass.add(n);
             rest = rest.get(k..).unwrap_or(&[]);
             self.drain()?;
             if rest.is_empty() && !self.dispatcher.busy() && self.answer.is_some() {
@@ -502,6 +548,7 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
             Answer::Status {
                 mode: Mode::Disarmed,
                 capture: CaptureState::Done(n),
+                ..
             } if usize::from(n) == CAPTURE => {}
             _ => return Err("the last status is not disarmed with the capture done"),
         }
@@ -523,6 +570,56 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
         }
         if self.controller.mode() != Mode::Disarmed {
             return Err("not disarmed after the commissioning");
+        }
+        // A heartbeat is answered.
+        seq += 1;
+        if self.request(seq, Command::Heartbeat, clock)? != Answer::Done {
+            return Err("a heartbeat was not answered done");
+        }
+        // Armed, the host falls silent: the board disarms with link_timeout one tick after
+        // the timeout.
+        seq += 1;
+        if self.request(seq, Command::Arm, clock)? != Answer::Done {
+            return Err("arming again refused");
+        }
+        let armed_at = self.ticks;
+        while self.controller.mode().armed() {
+            if self.ticks.wrapping_sub(armed_at) > 2 * LINK_TIMEOUT_TICKS {
+                return Err("still armed long after the link's timeout");
+            }
+            self.tick(clock)?;
+        }
+        self.out.link_lost_after = self.ticks.wrapping_sub(armed_at);
+        seq += 1;
+        match self.request(seq, Command::Status, clock)? {
+            Answer::Status {
+                mode: Mode::Fault,
+                fault: Some(f),
+                ..
+            } if f == Fault::LinkTimeout.code() => {}
+            _ => return Err("the silent host did not leave link_timeout latched"),
+        }
+        seq += 1;
+        if self.request(seq, Command::Clear, clock)? != Answer::Done {
+            return Err("link_timeout did not clear");
+        }
+        // The main loop hangs: the ticks go on, latch main_loop_stalled and stop feeding
+        // the watchdogs.
+        self.main_hung = true;
+        let last_pass = self.ticks;
+        while self.fed {
+            if self.ticks.wrapping_sub(last_pass) > 2 * MAIN_LOOP_TICKS {
+                return Err("the ticks still feed the watchdogs long after the main loop hung");
+            }
+            self.tick(clock)?;
+        }
+        self.out.main_stalled_after = self.ticks.wrapping_sub(last_pass);
+        if self.controller.state().supervisor.latched() != Some(Fault::MainLoopStalled)
+            || self.bridge.mode() != BridgeMode::Coast
+        {
+            return Err(
+                "a hung main loop did not latch main_loop_stalled with the bridge coasting",
+            );
         }
         self.out.hash = self.hash.0;
         self.out.len = self.hash.1;

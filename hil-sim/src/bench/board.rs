@@ -8,7 +8,8 @@
 //! | firmware | virtual board |
 //! |---|---|
 //! | TIM1 + ADC1 interrupt, 20 kHz | [`VirtualBoard::tick`]: sample the plant, tick, advance the plant one period |
-//! | UART with DMA | bytes in and out ([`VirtualBoard::input`], [`VirtualBoard::output`]); [`VirtualBoard::serve`] moves them over a pseudo-terminal |
+//! | UART with DMA | bytes in and out ([`VirtualBoard::input`], [`VirtualBoard::output`]) at the link's rate ([`ema::protocol::BAUD`], 10 bits a byte), a receive ring of the firmware's size that drops what overflows it; [`VirtualBoard::serve`] moves them over a pseudo-terminal and drops what the host does not read, as a UART does, counting both ([`VirtualBoard::dropped`]) |
+//! | the watchdogs | a run of ticks that do not feed them longer than the window watchdog waits ([`ema::guard::WATCHDOG_QUIET_PERIODS`]) restarts the application with the fault the firmware's next start latches (`main_loop_stalled` after a stalled main loop, `overrun` otherwise) |
 //! | flash sectors 1 and 2 | [`Flash`], which can lose its power at any write |
 //! | a save restarts the chip, which writes the flash before it starts the control | [`VirtualBoard::restart`] with the set to save, the same [`device::boot`] |
 //! | the measured current-sensor zero | the nominal zero |
@@ -34,8 +35,9 @@ use ema::device::{
 };
 use ema::guard::{End, Start};
 use ema::params::{Board, Params};
-use ema::protocol::{LoadError, Mode, Sample, StoreError};
+use ema::protocol::{self, Build, LoadError, Mode, Sample, StoreError};
 use ema::store::{ReadOnly, Store};
+use ema::supervisor::Fault;
 
 use super::flash::{Flash, PAGE, PAGES};
 use crate::hal::{self, Adc, Converter, Lines, Pin, Pwm};
@@ -50,6 +52,13 @@ pub struct Options {
     pub actuator: Actuator,
     /// Typical converter noise (1.5 codes RMS, seed 1) instead of none.
     pub noise: bool,
+    /// The built-in `link.*` parameters. A board served faster than real time
+    /// ([`VirtualBoard::serve`] without a speed) runs its ticks faster than a host's
+    /// heartbeat, paced in real time, can follow: its timeout must be off (0).
+    pub link: ema::liveness::Settings,
+    /// The link at the UART's rate, through a receive ring of the firmware's size (the
+    /// default); off, bytes reach the board and leave it at once (a decoder fed at volume).
+    pub uart: bool,
 }
 
 impl Default for Options {
@@ -57,6 +66,8 @@ impl Default for Options {
         Self {
             actuator: Actuator::PRODUCT,
             noise: false,
+            link: ema::liveness::Settings::default(),
+            uart: true,
         }
     }
 }
@@ -108,6 +119,21 @@ pub enum Injection {
         /// Offset \[code\].
         offset_code: f64,
     },
+    /// The main loop hangs (it no longer serves the link nor checks in), or runs again.
+    HangMainLoop(bool),
+}
+
+/// Bytes the firmware's receive ring holds (its `link::RX_RING`): what arrives while it
+/// is full is lost, as when the DMA overwrites bytes the main loop has not read.
+pub const RX_RING: usize = 256;
+
+/// Bytes lost on the way, as a UART loses them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Dropped {
+    /// Received while the receive ring was full.
+    pub received: u64,
+    /// Sent while the host did not read.
+    pub sent: u64,
 }
 
 /// The plant side: what the firmware's timer, converter and bridge see.
@@ -141,8 +167,18 @@ pub struct VirtualBoard {
     running: Option<Running>,
     flash: Option<Flash>,
     save_cut: Option<u64>,
+    /// Bytes from the host not yet on the line.
+    line: std::collections::VecDeque<u8>,
+    /// The receive ring: bytes on the line, not yet taken by the main loop.
     rx: Vec<u8>,
     tx: Vec<u8>,
+    /// Bytes the line may still carry this tick, each way (a byte every 10 bits).
+    credit: [f64; 2],
+    dropped: Dropped,
+    /// The main loop hangs.
+    main_hung: bool,
+    /// Ticks in a row that did not feed the watchdogs.
+    unfed: u32,
     ticks: u64,
     starts: u32,
     last_boot: Option<Boot>,
@@ -190,7 +226,10 @@ impl VirtualBoard {
     /// An actuator whose settings do not derive.
     pub fn with_flash(options: Options, flash: Flash) -> Result<Self, Error> {
         let scenario = scenario(&options.actuator, options.noise)?;
-        let defaults = Params::new(options.actuator);
+        let defaults = Params {
+            link: options.link,
+            ..Params::new(options.actuator)
+        };
         let board = Board {
             rate_hz: options.actuator.board.rate_hz,
             current_zero_code: None,
@@ -207,8 +246,13 @@ impl VirtualBoard {
             running: None,
             flash: Some(flash),
             save_cut: None,
+            line: std::collections::VecDeque::new(),
             rx: Vec::new(),
             tx: Vec::new(),
+            credit: [0.0; 2],
+            dropped: Dropped::default(),
+            main_hung: false,
+            unfed: 0,
             ticks: 0,
             starts: 0,
             last_boot: None,
@@ -231,8 +275,13 @@ impl VirtualBoard {
         &self.options
     }
 
-    /// Starts (after a power-on or a restart): stores `save` first when given, then loads.
+    /// Starts (after a power-on or a restart): stores `save` first when given, then loads;
+    /// with `latched`, the fault a watchdog reset leaves latched.
     fn start(&mut self, save: Option<Params>) -> Result<(), Error> {
+        self.start_with(save, None)
+    }
+
+    fn start_with(&mut self, save: Option<Params>, latched: Option<Fault>) -> Result<(), Error> {
         let mut flash = match self.running.take() {
             Some(r) => r.store.release(),
             None => self.flash.take().unwrap_or_default(),
@@ -261,13 +310,16 @@ impl VirtualBoard {
         }
         let store = Store::new(flash, store_range())
             .map_err(|e| Error::param("store", f64::NAN, format!("{e:?}")))?;
-        let controller = Controller::new(
+        let mut controller = Controller::new(
             boot.install,
             self.period_ns,
             vec![Sample::default(); CAPTURE_CAPACITY],
         );
+        if let Some(fault) = latched {
+            controller.trip(&mut self.plant.bridge, fault);
+        }
         let capacity = u16::try_from(CAPTURE_CAPACITY).unwrap_or(u16::MAX);
-        let dispatcher = Dispatcher::new(self.board, self.defaults, &boot, capacity);
+        let dispatcher = Dispatcher::new(self.board, Build::THIS, self.defaults, &boot, capacity);
         self.running = Some(Running {
             controller,
             dispatcher,
@@ -275,6 +327,8 @@ impl VirtualBoard {
             store,
         });
         self.rx.clear();
+        self.main_hung = false;
+        self.unfed = 0;
         self.starts += 1;
         self.last_boot = Some(boot);
         Ok(())
@@ -331,12 +385,25 @@ impl VirtualBoard {
                 .plant
                 .converter
                 .set_position_error(gain_error, offset_code),
+            Injection::HangMainLoop(hung) => self.main_hung = hung,
         }
     }
 
-    /// Bytes from the host.
+    /// Bytes from the host: they reach the board at the link's rate.
     pub fn input(&mut self, bytes: &[u8]) {
-        self.rx.extend_from_slice(bytes);
+        self.line.extend(bytes);
+    }
+
+    /// Bytes from the host not yet delivered to the board.
+    #[must_use]
+    pub fn input_pending(&self) -> usize {
+        self.line.len()
+    }
+
+    /// Bytes lost so far.
+    #[must_use]
+    pub const fn dropped(&self) -> Dropped {
+        self.dropped
     }
 
     /// Bytes for the host (taken).
@@ -431,11 +498,31 @@ impl VirtualBoard {
             return Ok(Ticked::default());
         };
         let (mut main, mut isr) = run.queues.split();
-        let taken = {
-            let mut ro = ReadOnlyStore(&mut run.store);
-            run.dispatcher.receive(&self.rx, &mut main, &mut ro)
+        // The line: at most its rate's bytes this tick, into the ring while it has room.
+        let per_tick = if self.options.uart {
+            f64::from(protocol::BAUD) / 10.0 / self.scenario.rate_hz()
+        } else {
+            f64::INFINITY
         };
-        self.rx.drain(..taken);
+        self.credit = self.credit.map(|c| (c + per_tick).min(per_tick.max(1.0)));
+        while self.credit[0] >= 1.0 {
+            let Some(b) = self.line.pop_front() else {
+                break;
+            };
+            self.credit[0] -= 1.0;
+            if self.rx.len() < RX_RING || !self.options.uart {
+                self.rx.push(b);
+            } else {
+                self.dropped.received += 1;
+            }
+        }
+        if !self.main_hung {
+            let taken = {
+                let mut ro = ReadOnlyStore(&mut run.store);
+                run.dispatcher.receive(&self.rx, &mut main, &mut ro)
+            };
+            self.rx.drain(..taken);
+        }
 
         if self.plant.driver_fault {
             // The break input is held low: the outputs stay off, whatever software does.
@@ -471,14 +558,37 @@ impl VirtualBoard {
             .advance(self.plant.lines.switches(), self.plant.mode);
         self.ticks += 1;
 
-        run.dispatcher.poll(&mut main);
-        let out = run.dispatcher.tx().len();
-        self.tx.extend_from_slice(run.dispatcher.tx());
-        run.dispatcher.sent(out);
-        match run.dispatcher.take_action() {
+        if !self.main_hung {
+            run.dispatcher.poll(&mut main);
+            let out = if self.credit[1] >= run.dispatcher.tx().len() as f64 {
+                run.dispatcher.tx().len()
+            } else {
+                self.credit[1].floor() as usize
+            };
+            self.credit[1] -= out as f64;
+            self.tx.extend_from_slice(&run.dispatcher.tx()[..out]);
+            run.dispatcher.sent(out);
+        }
+        let latched = run.controller.state().supervisor.latched();
+        let action = if self.main_hung {
+            None
+        } else {
+            run.dispatcher.take_action()
+        };
+        match action {
             Some(Action::Save(p)) => self.start(Some(p))?,
             Some(Action::Restart) => self.start(None)?,
             None => {}
+        }
+        // The window watchdog: a few periods without a feed reset the chip.
+        self.unfed = if ticked.feed { 0 } else { self.unfed + 1 };
+        if self.unfed > ema::guard::WATCHDOG_QUIET_PERIODS {
+            let fault = if latched == Some(Fault::MainLoopStalled) {
+                Fault::MainLoopStalled
+            } else {
+                Fault::Overrun
+            };
+            self.start_with(None, Some(fault))?;
         }
         Ok(ticked)
     }
@@ -511,25 +621,39 @@ impl VirtualBoard {
         let start = Instant::now();
         let t0 = self.ticks;
         let mut buf = [0u8; 1024];
+        let busy = |e: &std::io::Error| {
+            matches!(
+                e.kind(),
+                std::io::ErrorKind::TimedOut
+                    | std::io::ErrorKind::WouldBlock
+                    | std::io::ErrorKind::Interrupted
+            )
+        };
         while !stop.load(Ordering::Relaxed) {
-            match port.read(&mut buf) {
-                Ok(n) => self.input(&buf[..n]),
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::Interrupted
-                    ) => {}
-                Err(e) => return Err(e.into()),
+            // Only as much as the line carries: the rest waits in the port, as it would
+            // in a USB-serial adapter.
+            if self.input_pending() < buf.len() {
+                match port.read(&mut buf) {
+                    Ok(n) => self.input(&buf[..n]),
+                    Err(e) if busy(&e) => {}
+                    Err(e) => return Err(e.into()),
+                }
             }
             between(self);
             self.run(batch)?;
             let out = self.output();
-            if !out.is_empty() {
-                port.write_all(&out)?;
-                port.flush()?;
+            // What the host does not take is lost, as a UART's bytes are when nobody
+            // listens: the board never waits for its host.
+            let mut at = 0;
+            while at < out.len() {
+                match port.write(&out[at..]) {
+                    Ok(0) => break,
+                    Ok(n) => at += n,
+                    Err(e) if busy(&e) => break,
+                    Err(e) => return Err(e.into()),
+                }
             }
+            self.dropped.sent += (out.len() - at) as u64;
             if let Some(speed) = speed {
                 let board_s = (self.ticks - t0) as f64 / self.scenario.rate_hz();
                 let ahead = board_s / speed - start.elapsed().as_secs_f64();

@@ -27,13 +27,13 @@ use ema::actuator::{Actuator, Magnetics};
 use ema::commission::{self, Report};
 use ema::params::{self, Kind, Params};
 use ema::protocol::{
-    CaptureState, Command, Commissioned, Message, Mode, Reply, Signal, Status, Trigger, Value,
-    CHUNK_SAMPLES,
+    Build, CaptureState, Command, Commissioned, LoadError, Message, Mode, Reply, Signal, Source,
+    Status, Trigger, Value, CHUNK_SAMPLES,
 };
 use serialport::SerialPort;
 
 use super::board::{Injection, Options, VirtualBoard};
-use super::link::Link;
+use super::link::{Link, Port};
 use super::{fault_name, Capture};
 use crate::commissioning::{Holds, Mechanics};
 use crate::report::{self, sig, Figure, Panel, Series, Table};
@@ -88,7 +88,13 @@ pub enum Verb {
         value: String,
     },
     /// Stores the parameters in flash (the board restarts to write them).
-    Save,
+    Save {
+        /// Also when the board's stored set is one this firmware cannot read (a set of a
+        /// later format): saving replaces it (back it up with the firmware that wrote it
+        /// first).
+        #[arg(long)]
+        replace: bool,
+    },
     /// Reloads the stored parameters.
     Load,
     /// Back to the built-in parameters (not stored until `save`).
@@ -99,9 +105,27 @@ pub enum Verb {
     Watch(WatchArgs),
     /// Captures a move's response and compares it with the simulator's prediction.
     Capture(CaptureArgs),
-    /// Measures the coil's resistance and the position sensor's readings at the two end
-    /// stops, with the loop open (disarmed, nothing latched).
+    /// Measures the actuator on the board, loop open (disarmed, nothing latched): the
+    /// coil's resistance, its inductance and the position sensor's readings at both end
+    /// stops; with `--mechanics`, loop closed, the spring, the mass and the friction.
     Commission(CommissionArgs),
+    /// Writes every parameter of the board to FILE: the actuator file, with the board's
+    /// `[setpoint]` and `[link]` tables (before a firmware update; `hil-sim` reads it as
+    /// an actuator file).
+    Backup {
+        /// The file to write.
+        file: PathBuf,
+    },
+    /// Sets every parameter FILE holds (a `backup`, or an actuator file) on the board,
+    /// each validated as a `set`, and saves them (disarmed).
+    Restore {
+        /// The file to read.
+        file: PathBuf,
+    },
+    /// Commands from standard input, one per line as on the command line (`arm`, `move 3
+    /// --time-s 0.05`, `capture 2`, ...), over one link: the heartbeat keeps the board
+    /// armed between them; at the end of the input an armed board is disarmed.
+    Console,
     /// Runs the virtual board on a pseudo-terminal.
     Virtual(VirtualArgs),
 }
@@ -199,7 +223,7 @@ pub fn main() -> ExitCode {
     crate::cli::exit(Cli::parse(), dispatch)
 }
 
-/// Opens the serial port at `path`.
+/// Opens the serial port at `path`, its input flushed (see [`Link::new`]).
 ///
 /// # Errors
 /// The port cannot be opened.
@@ -211,6 +235,10 @@ pub fn open(
         .timeout(Duration::from_millis(20))
         .open_native()
         .with_context(|| format!("cannot open {}", path.display()))?;
+    // Whatever arrived before this process (replies to an earlier one, telemetry, line
+    // noise) is not for it.
+    port.clear(serialport::ClearBuffer::Input)
+        .with_context(|| format!("cannot flush {}", path.display()))?;
     Ok(Link::new(port, timeout))
 }
 
@@ -233,11 +261,7 @@ pub fn dispatch(cli: Cli, out: &mut dyn Write) -> anyhow::Result<()> {
 ///
 /// # Errors
 /// A refusal or failure, described.
-pub fn run<P: std::io::Read + Write>(
-    link: &mut Link<P>,
-    verb: Verb,
-    out: &mut dyn Write,
-) -> anyhow::Result<()> {
+pub fn run<P: Port>(link: &mut Link<P>, verb: Verb, out: &mut dyn Write) -> anyhow::Result<()> {
     match verb {
         Verb::Status => {
             let s = status(link)?;
@@ -245,7 +269,11 @@ pub fn run<P: std::io::Read + Write>(
         }
         Verb::Arm => {
             link.done(Command::Arm)?;
-            writeln!(out, "armed: holding the present position")?;
+            writeln!(
+                out,
+                "armed: holding the present position (the board disarms link.timeout_s \
+                 after this tool stops talking to it: `bench console` keeps it armed)"
+            )?;
         }
         Verb::Disarm => {
             link.done(Command::Disarm)?;
@@ -295,7 +323,31 @@ pub fn run<P: std::io::Read + Write>(
                 value_text(&name, v)
             )?;
         }
-        Verb::Save => save(link, out)?,
+        Verb::Save { replace } => {
+            if !replace {
+                if let Some(why) = save_would_replace(&status(link)?.params) {
+                    bail!("{why}");
+                }
+            }
+            save(link, out)?;
+        }
+        Verb::Backup { file } => {
+            let p = read_params(link)?;
+            std::fs::write(&file, backup_text(&p)?)
+                .with_context(|| format!("cannot write {}", file.display()))?;
+            writeln!(out, "every parameter written to {}", file.display())?;
+        }
+        Verb::Restore { file } => {
+            let text = std::fs::read_to_string(&file)
+                .with_context(|| format!("cannot read {}", file.display()))?;
+            let p = parse_backup(&text, &file.display().to_string())?;
+            restore(link, &p)?;
+            save(link, out)?;
+        }
+        Verb::Console => {
+            let stdin = std::io::stdin();
+            console(link, stdin.lock(), out)?;
+        }
         Verb::Load => {
             link.done(Command::Load)?;
             writeln!(out, "loaded the stored parameters")?;
@@ -326,17 +378,24 @@ pub fn run<P: std::io::Read + Write>(
 ///
 /// # Errors
 /// No reply, or an unexpected one.
-pub fn status<P: std::io::Read + Write>(link: &mut Link<P>) -> anyhow::Result<Status<'static>> {
+pub fn status<P: Port>(link: &mut Link<P>) -> anyhow::Result<Status<'static>> {
     let f = link.request(Command::Status)?;
     let mut scratch = Vec::new();
     match f.message(&mut scratch)? {
         Message::Reply {
             reply: Reply::Status(s),
             ..
-        } => Ok(Status {
-            params: super::owned_source(&s.params),
-            ..s
-        }),
+        } => {
+            let leak = |t: &str| -> &'static str { Box::leak(t.to_owned().into_boxed_str()) };
+            Ok(Status {
+                params: super::owned_source(&s.params),
+                build: Build {
+                    version: leak(s.build.version),
+                    id: leak(s.build.id),
+                },
+                ..s
+            })
+        }
         other => Err(anyhow!("unexpected reply: {other:?}")),
     }
 }
@@ -347,7 +406,7 @@ pub fn status<P: std::io::Read + Write>(link: &mut Link<P>) -> anyhow::Result<St
 /// # Errors
 /// Refused, stopped (with the board's reason), no outcome within the timeout, or (with
 /// `apply`) the value refused.
-pub fn commission<P: std::io::Read + Write>(
+pub fn commission<P: Port>(
     link: &mut Link<P>,
     args: &CommissionArgs,
     out: &mut dyn Write,
@@ -513,7 +572,7 @@ pub fn commission<P: std::io::Read + Write>(
 /// # Errors
 /// A refusal, no reply, a fault during the last attempt at the holds, a capture that
 /// does not finish.
-fn measure_mechanics<P: std::io::Read + Write>(
+fn measure_mechanics<P: Port>(
     link: &mut Link<P>,
     file: &Actuator,
     report: &Report,
@@ -895,7 +954,7 @@ impl std::error::Error for HoldsFault {}
 
 /// Sets the commissioned actuator `measured` and its `tuning` on the board and saves
 /// them; on a refusal the stored parameters are loaded back and nothing is saved.
-fn apply_commissioned<P: std::io::Read + Write>(
+fn apply_commissioned<P: Port>(
     link: &mut Link<P>,
     board: &Actuator,
     measured: &Actuator,
@@ -920,10 +979,7 @@ fn apply_commissioned<P: std::io::Read + Write>(
 ///
 /// # Errors
 /// A pass that sets none (the board's refusal of the last one), or the link failing.
-pub fn set_all<P: std::io::Read + Write>(
-    link: &mut Link<P>,
-    sets: &[(&'static str, Value)],
-) -> anyhow::Result<()> {
+pub fn set_all<P: Port>(link: &mut Link<P>, sets: &[(&'static str, Value)]) -> anyhow::Result<()> {
     let mut pending = sets.to_vec();
     while !pending.is_empty() {
         let mut refused = Vec::new();
@@ -953,7 +1009,7 @@ pub fn set_all<P: std::io::Read + Write>(
 ///
 /// # Errors
 /// No restart, or the board's store failed (named).
-fn save<P: std::io::Read + Write>(link: &mut Link<P>, out: &mut dyn Write) -> anyhow::Result<()> {
+fn save<P: Port>(link: &mut Link<P>, out: &mut dyn Write) -> anyhow::Result<()> {
     link.forget_started();
     link.done(Command::Save)?;
     let started = link.wait_started(Duration::from_secs(10))?;
@@ -969,6 +1025,152 @@ fn save<P: std::io::Read + Write>(link: &mut Link<P>, out: &mut dyn Write) -> an
             super::source(&started.params)
         ),
         None => bail!("the board restarted without saving"),
+    }
+    Ok(())
+}
+
+/// Why a save would destroy a stored set, if it would: the board fell back to its defaults
+/// because its stored set is of a format this firmware cannot read (a later one), which a
+/// save replaces.
+#[must_use]
+pub fn save_would_replace(source: &Source<'_>) -> Option<String> {
+    match source {
+        Source::Fallback(LoadError::Version { found, expected }) => Some(format!(
+            "the board's stored set is of format {found}, which this firmware (format \
+             {expected}) cannot read: saving replaces it. Back it up with the firmware that \
+             wrote it (bench backup FILE), then `save --replace` or `restore FILE`"
+        )),
+        _ => None,
+    }
+}
+
+/// The board's parameters `p` as a file: the actuator file, then the board's own tables
+/// (`[setpoint]`, `[link]`), choices by name.
+///
+/// # Errors
+/// The actuator does not serialise.
+pub fn backup_text(p: &Params) -> anyhow::Result<String> {
+    let mut text = format!(
+        "# Every parameter of a board (bench backup): the actuator file, then the board's\n\
+         # own [setpoint] and [link]. `bench restore` sets them all and saves.\n\n{}",
+        toml::to_string(&p.actuator)?
+    );
+    for table in crate::actuator::BOARD_TABLES {
+        text.push_str(&format!("\n[{table}]\n"));
+        for info in params::all().filter(|i| i.name.starts_with(table)) {
+            let key = &info.name[table.len() + 1..];
+            let v = p
+                .get(info.name)
+                .map_err(|e| anyhow!("{}: {e:?}", info.name))?;
+            let value = match v {
+                Value::Choice(_) => format!("\"{}\"", value_text(info.name, v)),
+                Value::Flag(b) => b.to_string(),
+                Value::Number(x) => format!("{x:?}"),
+            };
+            text.push_str(&format!("{key} = {value}\n"));
+        }
+    }
+    Ok(text)
+}
+
+/// The parameters in a file `backup_text` wrote (or a plain actuator file: the board's
+/// tables then at their defaults), validated as the board validates them; `origin` names
+/// it in errors.
+///
+/// # Errors
+/// TOML that does not parse, an unknown or mistyped field (named), a value refused.
+pub fn parse_backup(text: &str, origin: &str) -> anyhow::Result<Params> {
+    let mut table: toml::Table = toml::from_str(text).with_context(|| origin.to_owned())?;
+    let actuator = crate::actuator::parse(text, origin)?;
+    let board_tables: Vec<(&str, Option<toml::Value>)> = crate::actuator::BOARD_TABLES
+        .into_iter()
+        .map(|t| (t, table.remove(t)))
+        .collect();
+    let mut p = Params::new(actuator);
+    for (name, value) in board_tables {
+        let Some(value) = value else { continue };
+        let toml::Value::Table(fields) = value else {
+            bail!("{origin}: [{name}] is not a table");
+        };
+        for (key, v) in fields {
+            let full = format!("{name}.{key}");
+            let text = match v {
+                toml::Value::String(s) => s,
+                other => other.to_string(),
+            };
+            let value = parse_value(&full, &text).with_context(|| origin.to_owned())?;
+            p.set(&full, value)
+                .map_err(|e| anyhow!("{origin}: {full}: {e:?}"))?;
+        }
+    }
+    Ok(p)
+}
+
+/// Sets every parameter of `p` the link can change on the board ([`set_all`]); the
+/// firmware's fixed ones (`board.rate_hz`, `magnetics.kind`) must already agree.
+///
+/// # Errors
+/// A fixed parameter that differs, a refusal, the link failing.
+pub fn restore<P: Port>(link: &mut Link<P>, p: &Params) -> anyhow::Result<()> {
+    let mut sets = Vec::new();
+    for info in params::all() {
+        let Ok(v) = p.get(info.name) else { continue };
+        if let Some(why) = info.fixed {
+            let board = get(link, info.name)?;
+            if board != v {
+                bail!(
+                    "{} is {} in the file and {} on the board, which cannot change it ({why})",
+                    info.name,
+                    value_text(info.name, v),
+                    value_text(info.name, board)
+                );
+            }
+            continue;
+        }
+        sets.push((info.name, v));
+    }
+    set_all(link, &sets)
+}
+
+/// Runs the commands of `input`, one per line, over `link` (see [`Verb::Console`]); a
+/// line that does not parse or fails is reported and the next one runs. At the end of the
+/// input an armed board is disarmed.
+///
+/// # Errors
+/// The link failing at the end.
+pub fn console<P: Port>(
+    link: &mut Link<P>,
+    input: impl std::io::BufRead,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    /// One line of the console.
+    #[derive(Debug, Parser)]
+    #[command(name = "", no_binary_name = true)]
+    struct Line {
+        #[command(subcommand)]
+        verb: Verb,
+    }
+    for line in input.lines() {
+        let line = line?;
+        let words: Vec<&str> = line.split_whitespace().collect();
+        if words.is_empty() || words[0].starts_with('#') {
+            continue;
+        }
+        match Line::try_parse_from(&words) {
+            Err(e) => writeln!(out, "{}", e.to_string().trim_end())?,
+            Ok(Line {
+                verb: Verb::Console | Verb::Virtual(_),
+            }) => writeln!(out, "`{}` does not run inside a console", words[0])?,
+            Ok(Line { verb }) => {
+                if let Err(e) = run(link, verb, out) {
+                    writeln!(out, "{}: {e:#}", words[0])?;
+                }
+            }
+        }
+    }
+    if status(link)?.mode.armed() {
+        link.done(Command::Disarm)?;
+        writeln!(out, "end of input: disarmed")?;
     }
     Ok(())
 }
@@ -1076,6 +1278,11 @@ pub fn actuator_file(
 pub fn status_text(s: &Status<'_>) -> String {
     let mut t = Table::new(["", ""]);
     let row = |t: &mut Table, k: &str, v: String| t.push([k.to_owned(), v]);
+    row(
+        &mut t,
+        "firmware",
+        format!("ema {} ({})", s.build.version, s.build.id),
+    );
     row(&mut t, "state", s.mode.name().into());
     row(
         &mut t,
@@ -1173,7 +1380,7 @@ pub fn status_text(s: &Status<'_>) -> String {
 ///
 /// # Errors
 /// A refusal (described), or no reply.
-pub fn get<P: std::io::Read + Write>(link: &mut Link<P>, name: &str) -> anyhow::Result<Value> {
+pub fn get<P: Port>(link: &mut Link<P>, name: &str) -> anyhow::Result<Value> {
     let f = link.request(Command::Get { name })?;
     let mut scratch = Vec::new();
     match f.message(&mut scratch)? {
@@ -1193,7 +1400,7 @@ pub fn get<P: std::io::Read + Write>(link: &mut Link<P>, name: &str) -> anyhow::
 ///
 /// # Errors
 /// As [`get`].
-pub fn read_params<P: std::io::Read + Write>(link: &mut Link<P>) -> anyhow::Result<Params> {
+pub fn read_params<P: Port>(link: &mut Link<P>) -> anyhow::Result<Params> {
     let kind = get(link, "magnetics.kind")?;
     let mut a = Actuator::PRODUCT;
     if kind == Value::Choice(1) {
@@ -1271,11 +1478,7 @@ fn signal_mask(names: &[String]) -> anyhow::Result<(u16, Vec<Signal>)> {
     Ok((mask, chosen))
 }
 
-fn watch<P: std::io::Read + Write>(
-    link: &mut Link<P>,
-    a: &WatchArgs,
-    out: &mut dyn Write,
-) -> anyhow::Result<()> {
+fn watch<P: Port>(link: &mut Link<P>, a: &WatchArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let (mask, chosen) = signal_mask(&a.signals)?;
     link.done(Command::Stream {
         signals: mask,
@@ -1340,7 +1543,7 @@ pub struct CaptureOutcome {
 ///
 /// # Errors
 /// A refusal, no reply, a capture that does not finish.
-fn capture_move<P: std::io::Read + Write>(
+fn capture_move<P: Port>(
     link: &mut Link<P>,
     samples: u16,
     decimation: u16,
@@ -1367,7 +1570,7 @@ fn capture_move<P: std::io::Read + Write>(
 ///
 /// # Errors
 /// A refusal, no reply, a capture that does not finish.
-fn read_capture<P: std::io::Read + Write>(
+fn read_capture<P: Port>(
     link: &mut Link<P>,
     samples: u16,
     decimation: u16,
@@ -1407,7 +1610,7 @@ fn read_capture<P: std::io::Read + Write>(
 ///
 /// # Errors
 /// A refusal, no reply, a capture that does not finish, files that cannot be written.
-pub fn capture<P: std::io::Read + Write>(
+pub fn capture<P: Port>(
     link: &mut Link<P>,
     a: &CaptureArgs,
     out: &mut dyn Write,
@@ -1539,7 +1742,8 @@ pub fn capture<P: std::io::Read + Write>(
 const INJECTIONS: &str = "supply V, position-open, position-ok, analog-v V, analog-ma MA, \
                           cut-save STEP, resistance OHM, surfaces SCALE, \
                           spring N_PER_M PRELOAD_N, \
-                          mechanics MASS_KG N_PER_M PRELOAD_N FRICTION_N_S_PER_M";
+                          mechanics MASS_KG N_PER_M PRELOAD_N FRICTION_N_S_PER_M, \
+                          hang-main, run-main";
 
 /// A line of the virtual board's standard input, as an injection on a board whose
 /// actuator's file is `file` (a spring keeps its mass and friction).
@@ -1590,6 +1794,8 @@ fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
         ("cut-save", Some(Ok(v))) => Ok(Injection::CutSave(v as u64)),
         ("resistance", Some(Ok(v))) => Ok(Injection::Resistance(v)),
         ("surfaces", Some(Ok(v))) => Ok(Injection::Surfaces(v)),
+        ("hang-main", None) => Ok(Injection::HangMainLoop(true)),
+        ("run-main", None) => Ok(Injection::HangMainLoop(false)),
         _ => Err(format!("unknown: `{line}` ({INJECTIONS})")),
     })
 }
@@ -1599,9 +1805,21 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
         Some(name) => crate::actuator::load(name)?.1,
         None => Actuator::PRODUCT,
     };
+    // As fast as it can, the board's ticks outrun a host's heartbeat paced in real time:
+    // its link timeout is off then (see `Options::link`).
+    let link = if a.speed > 0.0 {
+        ema::liveness::Settings::default()
+    } else {
+        ema::liveness::Settings {
+            timeout_s: 0.0,
+            ..ema::liveness::Settings::default()
+        }
+    };
     let mut board = VirtualBoard::new(Options {
         actuator,
         noise: a.noise,
+        link,
+        ..Options::default()
     })?;
     let (mut master, slave) =
         serialport::TTYPort::pair().context("cannot open a pseudo-terminal")?;
@@ -1620,9 +1838,12 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
         a.actuator.as_deref().unwrap_or("the product's actuator"),
         board.scenario().rate_hz(),
         if a.speed > 0.0 {
-            format!("{} x real time", a.speed)
+            format!(
+                "{} x real time, link.timeout_s {} s",
+                a.speed, link.timeout_s
+            )
         } else {
-            "as fast as it can".into()
+            "as fast as it can, link.timeout_s off".into()
         }
     )?;
     out.flush()?;

@@ -1,8 +1,24 @@
 //! The host's end of the link: requests out, replies in, over any byte stream (a serial
 //! port, a pseudo-terminal, or a virtual board in the same process).
+//!
+//! * **Sequence numbers.** Each process starts at a random one, and a reply is paired with
+//!   its request by number only: a late reply to an earlier process's request, or to a
+//!   request that timed out, is never taken for this one's.
+//! * **Rejections.** A [`Message::Rejected`] says the board could not read a frame; it
+//!   names no request (its sequence number could not be trusted), so it fails none: the
+//!   request waits for its own reply, and the error on a timeout counts the rejections
+//!   seen meanwhile.
+//! * **Heartbeat.** While the link is open, a thread sends
+//!   [`Command::Heartbeat`] whenever no request has gone out for [`HEARTBEAT`], a quarter
+//!   of the shortest timeout a board accepts ([`ema::liveness::MIN_TIMEOUT_S`]): an armed
+//!   board keeps its host for as long as this process runs, computing or waiting
+//!   included, and disarms within its `link.timeout_s` once the process ends.
 
 use std::collections::VecDeque;
 use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, AtomicU16, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context};
@@ -29,34 +45,138 @@ impl Frame {
     }
 }
 
+/// A byte stream the link runs over: a serial port, a pseudo-terminal (its heartbeat
+/// thread shares it).
+pub trait Port: Read + Write + Send + 'static {}
+
+impl<P: Read + Write + Send + 'static> Port for P {}
+
+/// How long the link may go without a request before the heartbeat thread sends one.
+pub const HEARTBEAT: Duration =
+    Duration::from_micros((ema::liveness::MIN_TIMEOUT_S * 250_000.0) as u64);
+
+/// Frames kept for a request to find its reply among (older ones are replies nobody
+/// waits for: the heartbeat's, or a timed-out request's).
+const KEPT_FRAMES: usize = 64;
+
+/// What the link's two threads share: the port, the next sequence number, when the last
+/// request went out.
+struct Shared<P> {
+    port: Mutex<P>,
+    seq: AtomicU16,
+    last_sent: Mutex<Instant>,
+    stop: AtomicBool,
+}
+
+impl<P: Write> Shared<P> {
+    fn port(&self) -> MutexGuard<'_, P> {
+        self.port
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// Sends `command` with the next sequence number; returns the number.
+    fn send(&self, command: Command<'_>) -> anyhow::Result<u16> {
+        let seq = self.seq.fetch_add(1, Ordering::Relaxed).wrapping_add(1);
+        let mut out = [0u8; MAX_FRAME];
+        let n = protocol::encode(&Request { seq, command }, &mut out)
+            .map_err(|e| anyhow!("cannot encode the request: {e}"))?;
+        {
+            let mut port = self.port();
+            port.write_all(&out[..n])?;
+            port.flush()?;
+        }
+        *self
+            .last_sent
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Instant::now();
+        Ok(seq)
+    }
+
+    /// Time since the last request.
+    fn quiet(&self) -> Duration {
+        self.last_sent
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .elapsed()
+    }
+}
+
 /// The host's end.
-pub struct Link<P> {
-    port: P,
-    seq: u16,
+pub struct Link<P: Port> {
+    shared: Arc<Shared<P>>,
+    heartbeat: Option<thread::JoinHandle<()>>,
     framer: Framer,
     frames: VecDeque<Frame>,
     telemetry: VecDeque<Telemetry>,
     started: Option<Frame>,
+    rejected: u32,
     timeout: Duration,
 }
 
-impl<P: Read + Write> Link<P> {
-    /// Over `port`; a request waits at most `timeout` for its reply.
+impl<P: Port> Link<P> {
+    /// Over `port` (whose input holds nothing older than this link: see
+    /// [`super::cli::open`]), starting at a random sequence number, with the heartbeat
+    /// running; a request waits at most `timeout` for its reply.
     pub fn new(port: P, timeout: Duration) -> Self {
-        Self {
-            port,
-            seq: 0,
+        let shared = Arc::new(Shared {
+            port: Mutex::new(port),
+            seq: AtomicU16::new(rand::random()),
+            last_sent: Mutex::new(Instant::now()),
+            stop: AtomicBool::new(false),
+        });
+        let mut link = Self {
+            shared,
+            heartbeat: None,
             framer: Framer::new(),
             frames: VecDeque::new(),
             telemetry: VecDeque::new(),
             started: None,
+            rejected: 0,
             timeout,
+        };
+        link.start_heartbeat();
+        link
+    }
+
+    /// Starts the heartbeat (if it is not running).
+    pub fn start_heartbeat(&mut self) {
+        if self.heartbeat.is_some() {
+            return;
+        }
+        self.shared.stop.store(false, Ordering::Relaxed);
+        let beat = self.shared.clone();
+        self.heartbeat = Some(thread::spawn(move || {
+            while !beat.stop.load(Ordering::Relaxed) {
+                let quiet = beat.quiet();
+                if quiet >= HEARTBEAT {
+                    // A failing port fails the next request of the main thread.
+                    let _ = beat.send(Command::Heartbeat);
+                } else {
+                    thread::sleep(HEARTBEAT - quiet);
+                }
+            }
+        }));
+    }
+
+    /// Stops the heartbeat: the board hears from this host only when it asks something
+    /// (a host that hangs with its port open, in tests).
+    pub fn stop_heartbeat(&mut self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+        if let Some(h) = self.heartbeat.take() {
+            let _ = h.join();
         }
     }
 
-    /// The port.
-    pub fn port(&mut self) -> &mut P {
-        &mut self.port
+    /// The port, locked (the heartbeat waits meanwhile).
+    pub fn port(&mut self) -> MutexGuard<'_, P> {
+        self.shared.port()
+    }
+
+    /// Frames the board rejected ([`Message::Rejected`]) since the link opened.
+    #[must_use]
+    pub const fn rejected(&self) -> u32 {
+        self.rejected
     }
 
     /// Sends raw bytes (tests: damaged frames).
@@ -64,8 +184,9 @@ impl<P: Read + Write> Link<P> {
     /// # Errors
     /// The port failing.
     pub fn send_raw(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        self.port.write_all(bytes)?;
-        self.port.flush()?;
+        let mut port = self.shared.port();
+        port.write_all(bytes)?;
+        port.flush()?;
         Ok(())
     }
 
@@ -75,7 +196,8 @@ impl<P: Read + Write> Link<P> {
     /// The port failing.
     pub fn pump(&mut self) -> anyhow::Result<()> {
         let mut buf = [0u8; 512];
-        let n = match self.port.read(&mut buf) {
+        let read = self.shared.port().read(&mut buf);
+        let n = match read {
             Ok(n) => n,
             Err(e)
                 if matches!(
@@ -106,34 +228,42 @@ impl<P: Read + Write> Link<P> {
         match f.message(&mut scratch) {
             Ok(Message::Telemetry(t)) => self.telemetry.push_back(t),
             Ok(Message::Started(_)) => self.started = Some(f),
-            _ => self.frames.push_back(f),
+            Ok(Message::Rejected(_)) => self.rejected = self.rejected.saturating_add(1),
+            _ => {
+                if self.frames.len() >= KEPT_FRAMES {
+                    self.frames.pop_front();
+                }
+                self.frames.push_back(f);
+            }
         }
     }
 
-    /// Sends `command` and waits for its reply (frames answering other requests and
-    /// [`Message::Rejected`] answers are returned as errors only when they are this
-    /// request's).
+    /// Sends `command` and waits for the reply with its sequence number (every other frame
+    /// is left aside: see the module documentation).
     ///
     /// # Errors
-    /// No reply in time, the port failing, a frame the board rejected.
+    /// No reply in time, the port failing.
     pub fn request(&mut self, command: Command<'_>) -> anyhow::Result<Frame> {
-        self.seq = self.seq.wrapping_add(1);
-        let seq = self.seq;
-        let mut out = [0u8; MAX_FRAME];
-        let n = protocol::encode(&Request { seq, command }, &mut out)
-            .map_err(|e| anyhow!("cannot encode the request: {e}"))?;
-        self.send_raw(&out[..n])?;
+        let rejected = self.rejected;
+        let seq = self.shared.send(command)?;
         let deadline = Instant::now() + self.timeout;
         loop {
-            while let Some(f) = self.frames.pop_front() {
-                let mut scratch = Vec::new();
-                match f.message(&mut scratch) {
-                    Ok(Message::Reply { seq: s, .. }) if s == seq => return Ok(f),
-                    Ok(Message::Rejected(e)) => bail!("the board could not read the request: {e}"),
-                    _ => {}
-                }
+            let mut scratch = Vec::new();
+            let mine = self.frames.iter().position(|f| {
+                matches!(f.message(&mut scratch), Ok(Message::Reply { seq: s, .. }) if s == seq)
+            });
+            if let Some(k) = mine {
+                return self.frames.remove(k).ok_or_else(|| anyhow!("lost frame"));
             }
             if Instant::now() > deadline {
+                let seen = self.rejected - rejected;
+                if seen > 0 {
+                    bail!(
+                        "no reply within {:?}; the board could not read {seen} frame(s) \
+                         meanwhile (line noise, or another program on the port?)",
+                        self.timeout
+                    );
+                }
                 bail!("no reply within {:?}", self.timeout);
             }
             self.pump()?;
@@ -189,6 +319,12 @@ impl<P: Read + Write> Link<P> {
     /// Forgets a start announcement received so far.
     pub fn forget_started(&mut self) {
         self.started = None;
+    }
+}
+
+impl<P: Port> Drop for Link<P> {
+    fn drop(&mut self) {
+        self.stop_heartbeat();
     }
 }
 

@@ -21,29 +21,44 @@
 //! $B virtual --link /tmp/ema-board &        # prints the pseudo-terminal; stdin: injections
 //! export EMA_PORT=/tmp/ema-board
 //! $B status                                 # disarmed after every start, where the parameters came from
-//! $B arm                                    # closed loop, holding the present position
-//! $B move 3 --time-s 0.05                   # set point in mm, optional duration
-//! $B capture 2 --out out/capture            # CSV + PNG, metrics next to the simulator's prediction
-//! $B watch --signals x_m,i_a --seconds 2    # live values
-//! $B disarm
+//! $B console <<'END'                        # one link, kept alive between the lines
+//! arm
+//! move 3 --time-s 0.05
+//! capture 2 --out out/capture
+//! watch --signals x_m,i_a --seconds 2
+//! disarm
+//! END
 //! $B set tuning.margin 0.6                  # disarmed only; refused values name field and value
 //! $B save                                   # stored in flash; the board restarts to write it
 //! $B restart && $B get tuning.margin        # kept
 //! $B clear                                  # after a fault, disarmed, once its cause is gone
+//! $B backup params.toml && $B restore params.toml   # every parameter, across a firmware update
 //! ```
+//!
+//! **The link.** The tool starts each process at a random sequence number with the port's
+//! input flushed, pairs every reply with its request by number, and keeps a heartbeat
+//! going while it runs ([`link`]): an armed board stays armed for as long as the tool
+//! talks to it and disarms `link.timeout_s` after it stops ([`ema::liveness`]). The
+//! single-command `arm` and `move` therefore leave the board armed only for that long;
+//! `console` runs a whole session over one link and disarms at the end of its input.
 //!
 //! On the virtual board's standard input, one injection per line: `supply V` (the
 //! supply's voltage), `position-open`, `position-ok`, `analog-v V`, `analog-ma MA`,
 //! `cut-save STEP` (the power goes at that step of the next save), `resistance OHM`,
 //! `surfaces SCALE` and `spring N_PER_M PRELOAD_N` (an actuator off its file, to
-//! commission). `virtual --speed 0`
-//! runs as fast as it can (the tests do).
+//! commission), `hang-main` and `run-main` (the main loop hangs: the board coasts, latches
+//! `main_loop_stalled` and restarts). `virtual --speed 0` runs as fast as it can (the
+//! tests do), with the link's timeout off: its ticks outrun a heartbeat paced in real
+//! time.
 //!
 //! What the tests hold the board to: `tests/bench.rs` (a whole session over a
 //! pseudo-terminal: arm, move, capture with the simulator's metrics, a supply fault by
-//! name, clear, a set while armed refused, save and restart kept, power cuts during saves),
+//! name, clear, a set while armed refused, save and restart kept, power cuts during saves;
+//! a silent host in real time, a hung main loop, two megabytes of noise with nobody
+//! reading, a backup restored on a fresh board, the console),
 //! `tests/power_cut.rs` (a power cut at every single step of a save leaves the old or the
-//! new set), `tests/frames.rs` (a million random and mutated frames).
+//! new set), `tests/frames.rs` (a million random and mutated frames; a noisy line at the
+//! link's rate).
 
 pub mod board;
 pub mod cli;

@@ -9,12 +9,12 @@ use cortex_m::peripheral::{NVIC, SCB};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
 use ema::device::{
-    Action, Controller, Dispatcher, Inputs, Install, IsrEnds, MainEnds, Queues, ANSWER_SLOTS,
+    Action, Controller, Dispatcher, Inputs, IsrEnds, MainEnds, Queues, ANSWER_SLOTS,
     CAPTURE_CAPACITY, ORDER_SLOTS, SAMPLE_SLOTS,
 };
 use ema::guard::{self, End, Start};
 use ema::params::{Board, Params};
-use ema::protocol::{Sample, Source};
+use ema::protocol::{Build, Sample, Source};
 use ema::store::{self, Store};
 use ema::supervisor::Fault;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
@@ -22,7 +22,6 @@ use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 use stm32f4xx_hal::gpio::{Alternate, Pin};
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt};
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::board;
 use crate::hw::{self, Bridge, Watchdogs};
@@ -123,21 +122,28 @@ fn record_words() -> *mut [u32; 2] {
 
 /// Records `cause` unless a cause is recorded already (the first one is kept: a panic's
 /// `udf` then lands in the hard-fault handler, which must not overwrite it).
-fn record(cause: Cause, detail: u8) {
+fn record(cause: Cause, detail: u8, attempt: u8) {
     // SAFETY: a valid, aligned static of two words; single core; accessed only through
     // these volatile operations, by start-up and by handlers that never return to the code
     // they interrupted. After a power-on the RAM holds arbitrary bits, which
     // `Record::decode` rejects.
     unsafe {
         if Record::decode(record_words().read_volatile()).is_none() {
-            record_words().write_volatile(Record { cause, detail }.encode());
+            record_words().write_volatile(
+                Record {
+                    cause,
+                    detail,
+                    attempt,
+                }
+                .encode(),
+            );
         }
     }
 }
 
-/// A parameter set to save at the next start, before the watchdogs run (a save erases a
-/// 16 KiB sector: 400 ms typical, 800 ms at most, far beyond the independent watchdog's
-/// 2 ms): a marker, the record's length and the record as the store encodes it (its own
+/// A parameter set to save at the next start, before the control and its watchdog timeout
+/// run (a save erases a 16 KiB sector: 400 ms typical, 800 ms at most, within the boot
+/// timeout `board::IWDG_BOOT`, far beyond the running one): a marker, the record's length and the record as the store encodes it (its own
 /// CRC covers it), in RAM that start-up leaves as it is.
 #[repr(C)]
 struct PendingSave {
@@ -208,8 +214,12 @@ fn take_record() -> Option<Record> {
 enum StartError {
     /// The peripherals were taken before.
     Peripherals,
+    /// The crystal, the PLL or the switch to it did not come in time.
+    ClockSetup(hw::ClockError),
     /// The clock tree is not the one the timing depends on.
     Clocks,
+    /// The independent watchdog did not take its running timeout.
+    Watchdog,
     /// The PWM's update event is not at the top of the count.
     PwmPhase(hw::PhaseError),
     /// No conversion arrived: TIM1 trigger or ADC dead.
@@ -238,6 +248,10 @@ impl StartError {
             StartError::SamplingInstant { .. } => 5,
             StartError::Settings(_) => 6,
             StartError::Store => 7,
+            StartError::ClockSetup(hw::ClockError::Crystal) => 8,
+            StartError::ClockSetup(hw::ClockError::Pll) => 9,
+            StartError::ClockSetup(hw::ClockError::Switch) => 10,
+            StartError::Watchdog => 11,
         }
     }
 }
@@ -251,7 +265,7 @@ fn main() -> ! {
     );
     let mut app = match start() {
         Ok(app) => app,
-        Err(e) => refused(e),
+        Err((e, attempt)) => refused(e, attempt),
     };
     let mut seen = 0;
     loop {
@@ -290,20 +304,37 @@ fn serve(app: &mut MainLoop) {
     }
 }
 
-/// Start refused: bridge off, the reason recorded, the independent watchdog restarts the
-/// chip.
-fn refused(e: StartError) -> ! {
-    {
-        hw::force_coast();
-        record(Cause::StartRefused, e.code());
+/// Start refused, the `attempt`-th time in a row: bridge off, the reason recorded. The
+/// independent watchdog restarts the chip, which then starts again with nothing latched
+/// (the record says the controller never drove), up to [`reset::START_ATTEMPTS`] times in
+/// a row; then the board stays refused, feeding the watchdog, the bridge off and the
+/// reason logged every few seconds, until a person resets or powers it: a board that
+/// cannot start does not cycle through resets.
+fn refused(e: StartError, attempt: u8) -> ! {
+    hw::force_coast();
+    record(Cause::StartRefused, e.code(), attempt);
+    if attempt < reset::START_ATTEMPTS {
         defmt::error!(
-            "not started: {}; bridge off, waiting for the watchdog to restart the chip",
-            e
+            "not started: {} (attempt {=u8} of {=u8}); bridge off, the watchdog restarts the chip",
+            e,
+            attempt,
+            reset::START_ATTEMPTS
         );
-        // The independent watchdog restarts the chip, which then starts again with nothing
-        // latched (the record says the controller never drove).
         loop {
             cortex_m::asm::wfi();
+        }
+    }
+    loop {
+        defmt::error!(
+            "not started: {} ({=u8} attempts); bridge off; reset or power the board to try again",
+            e,
+            attempt
+        );
+        // Fed every 16 M cycles: 1 s on the internal oscillator (a failed clock set-up),
+        // 0.1 s on the PLL; the boot timeout is at least 2.7 s.
+        for _ in 0..4 {
+            hw::feed_independent_watchdog();
+            cortex_m::asm::delay(16_000_000);
         }
     }
 }
@@ -382,17 +413,35 @@ impl defmt::Format for By {
 /// watchdog runs), watchdog, clocks, PWM (lines low, phase checked), ADC, current-sensor
 /// zero with the bridge off (sampling instant checked), settings, the link, main output,
 /// then the window watchdog and the control interrupt.
-fn start() -> Result<MainLoop, StartError> {
+fn start() -> Result<MainLoop, (StartError, u8)> {
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
-        return Err(StartError::Peripherals);
+        return Err((StartError::Peripherals, 1));
     };
+    // First of all: the cycle counter (every wait of start-up is bounded by it) and the
+    // independent watchdog with its boot timeout, long enough for everything start-up
+    // does (`board::BOOT_MAX_MS`) and short enough to end a hang.
+    hw::start_cycle_counter(&mut cp.DCB, &mut cp.DWT);
+    let watchdog_ok = hw::start_independent_watchdog(board::IWDG_BOOT);
+    hw::freeze_on_debug_halt(&dp.DBGMCU);
     let flags = hw::take_reset_flags(&dp.RCC);
     let last = take_record();
+    let attempt = reset::attempt(flags, last);
     let after_reset = reset::latched_after(flags, last);
     log_last_stop(flags, last, after_reset);
+    if !watchdog_ok {
+        return Err((StartError::Watchdog, attempt));
+    }
+    bring_up(dp, &mut cp.NVIC, after_reset).map_err(|e| (e, attempt))
+}
 
-    // The parameters, before the watchdogs: a save (and a repair of a store a power cut
-    // damaged) erases 16 KiB sectors, 400 ms each (800 ms at most). The bridge coasts
+/// Start-up after the watchdog: see [`start`].
+fn bring_up(
+    dp: pac::Peripherals,
+    nvic: &mut NVIC,
+    after_reset: Option<Fault>,
+) -> Result<MainLoop, StartError> {
+    // The parameters: a save (and a repair of a store a power cut damaged) erases 16 KiB
+    // sectors, 400 ms each (800 ms at most), within the boot timeout. The bridge coasts
     // meanwhile (the board's pull-downs; TIM1 is not started yet). The set is built here
     // for the nominal current zero and again below for the measured one.
     let defaults = Params::new(board::ACTUATOR);
@@ -412,19 +461,16 @@ fn start() -> Result<MainLoop, StartError> {
     store.flash().writable = false;
     log_boot(&boot.source, boot.saved);
 
-    // The independent watchdog first: a crystal that does not start hangs in the clock
-    // set-up below, and the watchdog ends that (recorded as such).
-    let mut independent = IndependentWatchdog::new(dp.IWDG);
-    independent.start(board::WATCHDOG_TIMEOUT_MS.millis());
-    hw::freeze_on_debug_halt(&dp.DBGMCU);
-    record(Cause::ClockSetup, 0);
-    let mut rcc = hw::start_clocks(dp.RCC);
+    // Every wait of the clock set-up is bounded; a hang there anyway (the watchdog's boot
+    // timeout ends it) is recorded as such.
+    record(Cause::ClockSetup, 0, 0);
+    let clocks = hw::start_clocks(dp.RCC);
     let _ = take_record();
+    let mut rcc = clocks.map_err(StartError::ClockSetup)?;
     if !hw::clocks_ok() {
         return Err(StartError::Clocks);
     }
     hw::start_clock_security();
-    hw::start_cycle_counter(&mut cp.DCB, &mut cp.DWT);
 
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiob = dp.GPIOB.split(&mut rcc);
@@ -441,6 +487,10 @@ fn start() -> Result<MainLoop, StartError> {
         board::SEQUENCE_IN_OFF_TIME_MAX_PERMILLE,
         board::BREAK_CURRENT_A
     );
+    defmt::info!(
+        "bus: coasts on every fault; the board must keep the coil's returned energy below {=f32} V (its rating)",
+        board::BUS_RATING_V
+    );
     if hw::hardware_tripped() {
         defmt::warn!("the bridge's fault input is active: the first tick latches hardware_trip");
     }
@@ -452,7 +502,7 @@ fn start() -> Result<MainLoop, StartError> {
     hw::start_adc(dp.ADC1, &dp.ADC_COMMON, &mut rcc);
 
     // Current-sensor zero, bridge coasting since reset.
-    let (zero, spread) = measure_current_zero(&mut independent)?;
+    let (zero, spread) = measure_current_zero()?;
     let plausible = board::zero_plausible(zero, spread);
     if plausible {
         defmt::info!(
@@ -475,14 +525,13 @@ fn start() -> Result<MainLoop, StartError> {
         rate_hz,
         current_zero_code: plausible.then_some(zero),
     };
-    let (control, analog) = boot
+    boot.install = boot
         .params
         .build(&board_now)
         .map_err(StartError::Settings)?;
-    boot.install = Install { control, analog };
     defmt::info!(
         "law {=str}, rate {=f32} Hz; disarmed: the bench link arms and moves ({=u32} baud on USART2)",
-        control.law().name(),
+        boot.install.control.law().name(),
         rate_hz,
         ema::protocol::BAUD
     );
@@ -505,7 +554,7 @@ fn start() -> Result<MainLoop, StartError> {
         controller.trip(&mut bridge, Fault::CurrentOffset);
     }
     let capacity = u16::try_from(CAPTURE_CAPACITY).unwrap_or(u16::MAX);
-    let dispatcher = Dispatcher::new(board_now, defaults, &boot, capacity);
+    let dispatcher = Dispatcher::new(board_now, Build::THIS, defaults, &boot, capacity);
     let (main_ends, isr_ends) = queues.split();
 
     let _tx_pin: Pin<{ board::LINK_PORT }, { board::LINK_TX_PIN }, Alternate<7>> =
@@ -514,14 +563,17 @@ fn start() -> Result<MainLoop, StartError> {
         gpioa.pa3.into_alternate().internal_pull_up(true);
     let link = Link::start(dp.USART2, dp.DMA1, rx, tx, &mut rcc);
 
+    // The independent watchdog's running timeout, now that every long step is over.
+    if !hw::start_independent_watchdog(board::IWDG_RUN) {
+        return Err(StartError::Watchdog);
+    }
     // Nothing can fail from here on: the window watchdog, once started, only stops with a
     // reset.
-    independent.feed();
     hw::enable_outputs();
     let control = Control {
         controller,
         bridge,
-        watchdogs: Watchdogs::start(independent),
+        watchdogs: Watchdogs::start(),
         ends: Some(isr_ends),
     };
     // SAFETY: the control interrupt is masked (never unmasked yet) and nothing else touches
@@ -541,8 +593,8 @@ fn start() -> Result<MainLoop, StartError> {
     // SAFETY: the handlers' state is in CONTROL and RECORD; unmasking cannot break a
     // critical section (none is open here). The early wake-up outranks the tick.
     unsafe {
-        cp.NVIC.set_priority(Interrupt::WWDG, WWDG_PRIORITY);
-        cp.NVIC.set_priority(Interrupt::ADC, ADC_PRIORITY);
+        nvic.set_priority(Interrupt::WWDG, WWDG_PRIORITY);
+        nvic.set_priority(Interrupt::ADC, ADC_PRIORITY);
         NVIC::unmask(Interrupt::WWDG);
         NVIC::unmask(Interrupt::ADC);
     }
@@ -630,12 +682,12 @@ impl NorFlash for ChipFlash {
 /// board::ZERO_SETTLE_SAMPLES discarded ones, polled at the trigger rate with the bridge
 /// off. Feeds the watchdog; gives up when a conversion is more than 4 periods late, and
 /// refuses conversions that do not end where the trigger places them.
-fn measure_current_zero(watchdog: &mut IndependentWatchdog) -> Result<(f32, u16), StartError> {
+fn measure_current_zero() -> Result<(f32, u16), StartError> {
     let (mut sum, mut lo, mut hi) = (0u32, u16::MAX, 0u16);
     for k in 0..board::ZERO_SETTLE_SAMPLES + board::ZERO_SAMPLES {
         let (cr1, cnt, frame) = hw::wait_conversion(4 * board::CONTROL_PERIOD_CYCLES)
             .ok_or(StartError::NoConversions)?;
-        watchdog.feed();
+        hw::feed_independent_watchdog();
         if !regs::conversions_placed(cr1, cnt) {
             return Err(StartError::SamplingInstant {
                 cnt,
@@ -715,6 +767,10 @@ fn ADC() {
     }
     if ticked.feed {
         c.watchdogs.feed();
+    } else if c.controller.state().supervisor.latched() == Some(Fault::MainLoopStalled) {
+        // The window watchdog ends this run within a few periods; the next start names
+        // the cause.
+        record(Cause::MainLoopStalled, 0, 0);
     }
     let end = hw::cycles();
     let cycles = end.wrapping_sub(start);
@@ -743,7 +799,7 @@ fn ADC() {
 #[interrupt]
 fn WWDG() {
     hw::force_coast();
-    record(Cause::TickStalled, 0);
+    record(Cause::TickStalled, 0, 0);
     loop {
         cortex_m::asm::wfi();
     }
@@ -754,7 +810,7 @@ fn WWDG() {
 #[exception]
 unsafe fn NonMaskableInt() {
     hw::force_coast();
-    record(Cause::ClockFailure, 0);
+    record(Cause::ClockFailure, 0, 0);
     hw::clear_clock_failure();
     loop {
         cortex_m::asm::wfi();
@@ -766,7 +822,7 @@ unsafe fn NonMaskableInt() {
 #[exception]
 unsafe fn DefaultHandler(irqn: i16) {
     hw::force_coast();
-    record(Cause::UnexpectedInterrupt, irqn.to_le_bytes()[0]);
+    record(Cause::UnexpectedInterrupt, irqn.to_le_bytes()[0], 0);
     loop {
         cortex_m::asm::wfi();
     }
@@ -779,7 +835,7 @@ unsafe fn DefaultHandler(irqn: i16) {
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
     cortex_m::interrupt::disable();
     hw::force_coast();
-    record(Cause::Panic, 0);
+    record(Cause::Panic, 0, 0);
     match info.location() {
         Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
         None => defmt::error!("panic"),
@@ -792,7 +848,7 @@ fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
 #[exception]
 unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
     hw::force_coast();
-    record(Cause::HardFault, 0);
+    record(Cause::HardFault, 0, 0);
     loop {
         cortex_m::asm::wfi();
     }

@@ -28,6 +28,23 @@
 //!   section 17.3.12): main output off, all three lines driven low; it stays off until a
 //!   reset (automatic re-enable is off), and the next tick latches
 //!   `Fault::HardwareTrip`.
+//! * **A bus that absorbs the coil's energy** (a TVS clamp, a brake chopper, or bulk
+//!   capacitance on the bridge's supply). On any fault, `bus_over_voltage` included, the
+//!   bridge coasts: all four switches open, and the coil's current returns to the bus
+//!   through the body diodes, up to `L I^2 / 2` at the comparator's trip current. Coasting
+//!   is the one reaction that needs no switch to work (a brake needs both low sides on,
+//!   and an integrated driver's own over-voltage lockout opens them all anyway), so the
+//!   bus must take that energy from the over-voltage trip (1.25 times the supply) without
+//!   exceeding [`BUS_RATING_V`], which the driver, the bridge and the capacitors must be
+//!   rated for: a clamp between the two, or at least [`bulk_capacitance_f`] of bulk
+//!   capacitance (266 uF for the product's actuator, 420 uH at 15.8 A: 53 mJ).
+//! * **Option bytes** (programmed once, with the probe): `WDG_SW` either way: cleared (the
+//!   hardware watchdog option), the independent watchdog runs from reset at LSI / 4 with
+//!   the reload 0xFFF, 512 ms nominal and 349 ms at the LSI's fastest, long enough to
+//!   reach the first line of start-up, which sets [`IWDG_BOOT`]; read protection at level
+//!   0 or 1; sectors 1 and 2 not write-protected (`nWRP1`, `nWRP2` set: the parameter
+//!   store writes them); `BOR_LEV` at 2.7 V, so that the flash is only written in the
+//!   voltage range whose erase times [`SECTOR_ERASE_MAX_MS`] gives.
 //! * **A driver that accepts a direction change while enabled** (its own dead time, as
 //!   integrated EN/PH drivers have): the direction changes at the period boundary, in the
 //!   middle of the off-time, so the driver is braking then, except at a duty of 100 %.
@@ -235,11 +252,99 @@ pub const EN_PORT: char = 'A';
 /// Pin number of the bridge enable.
 pub const EN_PIN: u8 = 9;
 
-/// Independent-watchdog timeout \[ms\] (LSI 32 kHz nominal, 17-47 kHz over the chip's
-/// range: 1.4 to 3.8 ms). 40 control periods; the coil's L/R is 0.15-0.44 ms, so a hung
-/// tick leaves the last duty on for at most a few milliseconds before the reset coasts
-/// the bridge (EN pull-down).
-pub const WATCHDOG_TIMEOUT_MS: u32 = 2;
+/// The independent watchdog's clock, the LSI oscillator \[Hz\]: 32 kHz nominal, 17 to
+/// 47 kHz over the chip's range (datasheet, LSI characteristics). Every timeout below is
+/// checked at both ends.
+pub const LSI_HZ: u32 = 32_000;
+/// The LSI's lowest frequency \[Hz\]: the longest a timeout can last.
+pub const LSI_MIN_HZ: u32 = 17_000;
+/// The LSI's highest frequency \[Hz\]: the shortest a timeout can last.
+pub const LSI_MAX_HZ: u32 = 47_000;
+
+/// An independent-watchdog timeout: the prescaler (IWDG_PR, code and divider) and the
+/// reload (IWDG_RLR, 12 bits): `(reload + 1) * divider` LSI periods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IwdgTimeout {
+    /// IWDG_PR: `divider = 4 << prescaler_code`.
+    pub prescaler_code: u8,
+    /// IWDG_RLR.
+    pub reload: u16,
+}
+
+impl IwdgTimeout {
+    /// The timeout of `ms` milliseconds at the nominal LSI with the divider `4 << code`.
+    #[must_use]
+    pub const fn new(prescaler_code: u8, ms: u32) -> Self {
+        let divider = 4u32 << prescaler_code;
+        let counts = ms * (LSI_HZ / 1000) / divider;
+        assert!(prescaler_code <= 6 && counts >= 1 && counts <= 4096);
+        Self {
+            prescaler_code,
+            reload: (counts - 1) as u16,
+        }
+    }
+
+    /// LSI periods of the timeout.
+    #[must_use]
+    pub const fn lsi_periods(self) -> u32 {
+        (self.reload as u32 + 1) * (4 << self.prescaler_code)
+    }
+
+    /// The shortest it lasts (the LSI at its fastest) \[us\].
+    #[must_use]
+    pub const fn min_us(self) -> u32 {
+        (self.lsi_periods() as u64 * 1_000_000 / LSI_MAX_HZ as u64) as u32
+    }
+
+    /// The longest it lasts (the LSI at its slowest) \[us\].
+    #[must_use]
+    pub const fn max_us(self) -> u32 {
+        (self.lsi_periods() as u64 * 1_000_000 / LSI_MIN_HZ as u64) as u32
+    }
+}
+
+/// The independent watchdog while the controller runs: 2 ms nominal (1.4 to 3.8 ms), 40
+/// control periods at 20 kHz, fed by every tick that runs on time while the main loop
+/// checks in; the coil's L/R is 0.15-0.44 ms, so a hung tick leaves the last duty on for
+/// at most a few milliseconds before the reset coasts the bridge (EN pull-down). The
+/// window watchdog acts first (within [`STALL_TO_COAST_MAX_NS`]); this one is the last
+/// resort.
+pub const IWDG_RUN: IwdgTimeout = IwdgTimeout::new(0, 2);
+
+/// Longest a flash sector erase of the parameter store takes \[ms\] (a 16 KiB sector,
+/// datasheet: 400 ms typical, 800 ms at most).
+pub const SECTOR_ERASE_MAX_MS: u32 = 800;
+/// Longest the crystal may take to start \[ms\]: the datasheet gives 2 ms typical and no
+/// maximum; ST's own start-up code waits 100 ms, fifty times the typical.
+pub const HSE_STARTUP_TIMEOUT_MS: u32 = 100;
+/// Longest the PLL may take to lock, and the system clock to switch to it \[ms\]: the
+/// datasheet's lock time is under 0.3 ms; ST's code waits 2 ms.
+pub const PLL_LOCK_TIMEOUT_MS: u32 = 2;
+/// The internal oscillator the core runs on until the switch to the PLL \[Hz\] (16 MHz,
+/// +-1 % at 25 C, a few percent over temperature: the waits below count cycles at it, and
+/// a slower oscillator only makes them longer).
+pub const HSI_HZ: u32 = 16_000_000;
+/// The crystal's wait, in cycles of the cycle counter at [`HSI_HZ`].
+pub const HSE_STARTUP_TIMEOUT_CYCLES: u32 = HSE_STARTUP_TIMEOUT_MS * (HSI_HZ / 1000);
+/// The PLL's waits, in cycles at [`HSI_HZ`].
+pub const PLL_LOCK_TIMEOUT_CYCLES: u32 = PLL_LOCK_TIMEOUT_MS * (HSI_HZ / 1000);
+/// Longest wait for an independent-watchdog register update (RM0090 20.4: up to 5 LSI
+/// periods at the prescaler's clock, twice that after a write): 20 LSI periods at its
+/// slowest, 1.2 ms, in cycles at the fastest core clock (the wait may run before or after
+/// the clock set-up; on the internal oscillator it only lasts longer).
+pub const IWDG_UPDATE_CYCLES: u32 = 20 * (SYSCLK_HZ / LSI_MIN_HZ);
+/// Everything start-up does before the controller's watchdogs run, at its longest \[ms\]:
+/// the deferred save (a store may erase both its sectors, when a power cut during the
+/// last save left the one it was writing to be repaired), the crystal and the PLL, and
+/// the rest of start-up (the current zero's 1088 conversions at the slowest 10 kHz, 109
+/// ms; the parameters' validation twice, a few milliseconds: 200 ms in all).
+pub const BOOT_MAX_MS: u32 =
+    2 * SECTOR_ERASE_MAX_MS + HSE_STARTUP_TIMEOUT_MS + 2 * PLL_LOCK_TIMEOUT_MS + 200;
+/// The independent watchdog from the first line of start-up until the controller runs:
+/// 4 s nominal (2.7 s at the LSI's fastest), above [`BOOT_MAX_MS`] at its shortest, so
+/// that a start on a good board never ends in a watchdog reset; start-up tightens it to
+/// [`IWDG_RUN`] just before the control interrupt starts.
+pub const IWDG_BOOT: IwdgTimeout = IwdgTimeout::new(6, 4000);
 
 /// The parameter store's flash range, as offsets from the flash's start (0x0800_0000):
 /// sectors 1 and 2 (16 KiB each), which `memory.x` keeps out of the image (the code
@@ -268,6 +373,31 @@ pub const BREAK_PIN: u8 = 12;
 /// scale (the actuator file's validation; checked again below). With the product's
 /// actuator, 15.84 A of its +-16.5 A.
 pub const BREAK_CURRENT_A: f32 = ACTUATOR.break_current_a();
+
+/// The bus voltage the board must stay below when the coil's energy returns to it \[V\]:
+/// half as much again as the supply (the firmware trips at 1.25 times), which the bridge
+/// driver, the switches and the bus capacitors must be rated for.
+pub const BUS_RATING_V: f32 = 1.5 * ACTUATOR.board.supply_v;
+
+/// The bulk capacitance that takes the coil's largest stored energy (its highest
+/// inductance, at the closed stop with the surfaces at their smallest, times the
+/// comparator's trip current squared, halved) from the over-voltage trip to
+/// [`BUS_RATING_V`] \[F\]: `2 E / (V_rating^2 - V_trip^2)`.
+///
+/// Host-side (the board's requirement, checked by the tests).
+///
+/// # Errors
+/// The actuator's settings do not derive.
+#[cfg(not(target_os = "none"))]
+pub fn bulk_capacitance_f() -> Result<f32, config::Error> {
+    let s = ACTUATOR.settings()?;
+    let closed = s.plant.gap_m(s.plant.stroke_m);
+    let l_h = s.plant.envelope()?.l_hi(closed);
+    let i_a = BREAK_CURRENT_A;
+    let energy_j = 0.5 * l_h * i_a * i_a;
+    let trip_v = s.limits.vbus_max_v;
+    Ok(2.0 * energy_j / (BUS_RATING_V * BUS_RATING_V - trip_v * trip_v))
+}
 
 /// Longest time from a tick that stops to a coasting bridge \[ns\].
 pub const STALL_TO_COAST_MAX_NS: u32 = 500_000;
@@ -340,6 +470,13 @@ const _: () = {
     assert!(WINDOW_WATCHDOG.early_wakeup_max_ns() <= STALL_TO_COAST_MAX_NS);
     assert!(WINDOW_WATCHDOG.reset_max_ns() <= STALL_TO_COAST_MAX_NS);
     assert!(WINDOW_WATCHDOG.counts() < Watchdog::MAX_COUNTS);
+    // The independent watchdog: a start cannot outlast it; running, it coasts a hung
+    // tick within a few milliseconds.
+    assert!(IWDG_BOOT.min_us() / 1000 > BOOT_MAX_MS);
+    assert!(IWDG_RUN.max_us() < 5_000);
+    assert!(IWDG_RUN.min_us() > 2 * CONTROL_PERIOD_NS / 1000);
+    // Reset state with WDG_SW cleared: LSI / 4, reload 0xFFF.
+    assert!(4096 * 4 * 1000 / LSI_MAX_HZ > 300);
     // The comparator trips inside the current channel's full scale (2047 codes either side
     // of mid-scale), so the converter sees what tripped it.
     assert!(
@@ -473,6 +610,13 @@ mod tests {
     fn the_comparator_trips_above_the_software_trip_inside_the_channel() {
         let s = settings(None).unwrap();
         assert!(s.limits.current_trip_a < BREAK_CURRENT_A);
+    }
+
+    #[test]
+    fn the_bus_takes_the_coils_energy_below_its_rating() {
+        assert_eq!(BUS_RATING_V, 36.0);
+        let c = bulk_capacitance_f().unwrap();
+        assert!((260e-6..270e-6).contains(&c), "{c} F");
     }
 
     #[test]

@@ -17,7 +17,6 @@ use stm32f4xx_hal::gpio;
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Enable, Rcc, Reset};
-use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::board;
 use crate::regs;
@@ -128,13 +127,41 @@ fn enable_off_now() {
 /// The H-bridge as the firmware drives it.
 pub type Bridge = ema::bridge::HBridge<Pwm, Line>;
 
+/// Why the clock tree did not start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum ClockError {
+    /// The crystal was not ready within [`board::HSE_STARTUP_TIMEOUT_CYCLES`].
+    Crystal,
+    /// The PLL did not lock within [`board::PLL_LOCK_TIMEOUT_CYCLES`].
+    Pll,
+    /// The system clock did not switch to the PLL within [`board::PLL_LOCK_TIMEOUT_CYCLES`].
+    Switch,
+}
+
+/// Polls `ready` until it holds or `timeout` cycles of the cycle counter have passed.
+fn wait_for(timeout: u32, ready: impl Fn() -> bool) -> bool {
+    let t0 = cycles();
+    while !ready() {
+        if cycles().wrapping_sub(t0) > timeout {
+            return false;
+        }
+    }
+    true
+}
+
 /// The clock tree: 168 MHz from the 8 MHz crystal, APB1 42 MHz, APB2 84 MHz, by register
 /// writes ([`regs::RCC_PLLCFGR`] and its neighbours), in the order the HAL's `Rcc::freeze`
-/// makes them; then waits for the switch to the PLL. Hangs if the crystal does not start
-/// (the independent watchdog ends that). The returned `Rcc` enables and resets the
-/// peripherals; its `clocks` field is the HAL's default and means nothing here (nothing
-/// reads it: the timer, ADC and USART values come from `board`).
-pub fn start_clocks(rcc: pac::RCC) -> Rcc {
+/// makes them. Each wait is bounded (the cycle counter must run: [`start_cycle_counter`]
+/// first; the core runs on the 16 MHz internal oscillator until the switch) and a wait
+/// that runs out is a named failure, with the crystal and the PLL left as they are. The
+/// returned `Rcc` enables and resets the peripherals; its `clocks` field is the HAL's
+/// default and means nothing here (nothing reads it: the timer, ADC and USART values come
+/// from `board`).
+///
+/// # Errors
+/// The crystal not ready, the PLL not locked or the switch to it not done in time.
+pub fn start_clocks(rcc: pac::RCC) -> Result<Rcc, ClockError> {
+    let cr = |bit: u32| move || rcc_now().cr().read().bits() & bit != 0;
     // SAFETY: register values from RM0090 (see `regs`); start-up owns RCC and FLASH here,
     // nothing else runs yet.
     unsafe {
@@ -144,11 +171,21 @@ pub fn start_clocks(rcc: pac::RCC) -> Rcc {
             .modify(|r, w| w.bits((r.bits() & !regs::FLASH_ACR_MASK) | regs::FLASH_ACR));
         rcc.cr()
             .modify(|r, w| w.bits(r.bits() | regs::RCC_CR_HSEON));
-        while rcc.cr().read().bits() & regs::RCC_CR_HSERDY == 0 {}
+    }
+    if !wait_for(board::HSE_STARTUP_TIMEOUT_CYCLES, cr(regs::RCC_CR_HSERDY)) {
+        return Err(ClockError::Crystal);
+    }
+    // SAFETY: as above.
+    unsafe {
         rcc.pllcfgr().write(|w| w.bits(regs::RCC_PLLCFGR));
         rcc.cr()
             .modify(|r, w| w.bits(r.bits() | regs::RCC_CR_PLLON));
-        while rcc.cr().read().bits() & regs::RCC_CR_PLLRDY == 0 {}
+    }
+    if !wait_for(board::PLL_LOCK_TIMEOUT_CYCLES, cr(regs::RCC_CR_PLLRDY)) {
+        return Err(ClockError::Pll);
+    }
+    // SAFETY: as above.
+    unsafe {
         rcc.cfgr()
             .modify(|r, w| w.bits(r.bits() & !regs::RCC_CFGR_I2SSRC));
         rcc.cfgr()
@@ -158,9 +195,56 @@ pub fn start_clocks(rcc: pac::RCC) -> Rcc {
         cortex_m::asm::delay(16);
         rcc.cfgr()
             .modify(|r, w| w.bits((r.bits() & !regs::RCC_CFGR_SW_MASK) | regs::RCC_CFGR_SW_PLL));
-        while rcc.cfgr().read().bits() & regs::RCC_CFGR_SWS_MASK != regs::RCC_CFGR_SWS_PLL {}
     }
-    rcc.constrain()
+    let switched =
+        || rcc_now().cfgr().read().bits() & regs::RCC_CFGR_SWS_MASK == regs::RCC_CFGR_SWS_PLL;
+    if !wait_for(board::PLL_LOCK_TIMEOUT_CYCLES, switched) {
+        return Err(ClockError::Switch);
+    }
+    Ok(rcc.constrain())
+}
+
+fn rcc_now() -> &'static pac::rcc::RegisterBlock {
+    // SAFETY: reads only (the waits of `start_clocks`, which owns RCC).
+    unsafe { &*pac::RCC::ptr() }
+}
+
+/// The independent watchdog, at register level (RM0090 section 20): started, or its
+/// timeout changed while it runs, to `timeout`; waits (at most
+/// [`board::IWDG_UPDATE_CYCLES`]) until the new values are in force, then reloads the
+/// counter with them. Returns whether they took. Safe at any time: the first write starts
+/// it (if the option bytes have not already), and from then on only the timeout changes.
+pub fn start_independent_watchdog(timeout: board::IwdgTimeout) -> bool {
+    // SAFETY: IWDG's key, prescaler and reload registers take these values (RM0090 20.4:
+    // the prescaler code 3 bits, the reload 12, checked by `board::IwdgTimeout`); only
+    // start-up writes them, before the interrupts run, and the tick's feed writes the key
+    // only.
+    let iwdg = unsafe { &*pac::IWDG::ptr() };
+    iwdg.kr()
+        .write(|w| unsafe { w.key().bits(regs::IWDG_KEY_START) });
+    // The prescaler and reload registers are written only when no earlier update is in
+    // progress (PVU, RVU clear).
+    let idle = || iwdg.sr().read().bits() & regs::IWDG_SR_UPDATING == 0;
+    if !wait_for(board::IWDG_UPDATE_CYCLES, idle) {
+        return false;
+    }
+    iwdg.kr()
+        .write(|w| unsafe { w.key().bits(regs::IWDG_KEY_ACCESS) });
+    iwdg.pr()
+        .write(|w| unsafe { w.pr().bits(timeout.prescaler_code) });
+    iwdg.rlr().write(|w| w.rl().set(timeout.reload));
+    let took = wait_for(board::IWDG_UPDATE_CYCLES, idle);
+    feed_independent_watchdog();
+    took
+}
+
+/// Reloads the independent watchdog's counter (a feed).
+#[inline(always)]
+pub fn feed_independent_watchdog() {
+    // SAFETY: a write of the reload key to IWDG_KR, which only reloads the counter.
+    let iwdg = unsafe { &*pac::IWDG::ptr() };
+    iwdg.kr()
+        .write(|w| unsafe { w.key().bits(regs::IWDG_KEY_RELOAD) });
 }
 
 /// `true` when the clock tree is the one [`start_clocks`] set: read back from the
@@ -239,8 +323,9 @@ pub enum PhaseError {
     UpdateAtBottom,
 }
 
-/// TIM1 from [`regs`]: the bridge lines driven low (main output off), the pins handed to
-/// it, the counter running; then checks that the update event falls at the top of the
+/// TIM1 from [`regs`]: the break pin handed to it first (its pull-up holding it high, so
+/// that enabling the break does not see the reset state of a floating input), the bridge
+/// lines driven low (main output off), the pins handed to it, the counter running; then checks that the update event falls at the top of the
 /// count (RM0090 17.3.3: with an odd repetition count in center-aligned mode, whether it
 /// lands on the overflow or the underflow depends on when RCR was written and the counter
 /// started). The main output stays off until [`enable_outputs`].
@@ -255,6 +340,11 @@ pub fn start_pwm(
 ) -> Result<(Pwm, Line, Line), PhaseError> {
     pac::TIM1::enable(rcc);
     pac::TIM1::reset(rcc);
+    let (pwm, en, dir, brk) = pins;
+    let _brk = brk.into_alternate::<1>().internal_pull_up(true);
+    // The board's pull-up (4.7 kOhm, tens of picofarads: well under a microsecond) has
+    // settled the pin before the break is enabled.
+    cortex_m::asm::delay(board::SYSCLK_HZ / 1_000_000);
     let tim = &timer;
     // SAFETY: TIM1 is owned here, clocked and reset, its counter stopped. Every value
     // comes from `regs`, where it is checked against the reference manual's bit positions;
@@ -285,12 +375,11 @@ pub fn start_pwm(
     // not trigger a conversion.
     tim.egr().write(|w| w.ug().set_bit());
     tim.sr().write(|w| w.uif().clear());
-    // The pins go to the timer now: its outputs are enabled at their idle level (low).
-    let (pwm, en, dir, brk) = pins;
+    // The bridge pins go to the timer now: its outputs are enabled at their idle level
+    // (low).
     let _pwm = pwm.into_alternate::<1>();
     let _en = en.into_alternate::<1>();
     let _dir = dir.into_alternate::<1>();
-    let _brk = brk.into_alternate::<1>().internal_pull_up(true);
     tim.cr1()
         .modify(|r, w| unsafe { w.bits(r.bits() | regs::CR1_CEN) });
 
@@ -434,17 +523,17 @@ pub fn wait_conversion(timeout: u32) -> Option<(u32, u32, Frame)> {
     Some((cr1, cnt, take_frame().0))
 }
 
-/// Both watchdogs; the tick feeds them when the guard says it ran on time.
-pub struct Watchdogs {
-    independent: IndependentWatchdog,
-}
+/// Both watchdogs; the tick feeds them when the guard says it ran on time and the main
+/// loop has checked in.
+pub struct Watchdogs(());
 
 impl Watchdogs {
     /// Starts the window watchdog (board::WINDOW_WATCHDOG, early-wakeup interrupt on; its
-    /// NVIC line is unmasked by the caller) beside the running independent one. Once
-    /// started, only a reset stops it: every step that can fail comes before.
+    /// NVIC line is unmasked by the caller) beside the running independent one, which
+    /// start-up has tightened to its running timeout. Once started, only a reset stops it:
+    /// every step that can fail comes before.
     #[inline(never)]
-    pub fn start(independent: IndependentWatchdog) -> Self {
+    pub fn start() -> Self {
         // SAFETY: RCC_APB1ENR: one more clock enable bit, written back as read otherwise;
         // the WWDG values come from `regs` (checked against RM0090 21.6).
         unsafe {
@@ -455,13 +544,13 @@ impl Watchdogs {
             wwdg.sr().write(|w| w.bits(0));
             wwdg.cr().write(|w| w.bits(regs::WWDG_CR));
         }
-        Self { independent }
+        Self(())
     }
 
     /// Feeds both.
     #[inline(always)]
     pub fn feed(&mut self) {
-        self.independent.feed();
+        feed_independent_watchdog();
         // SAFETY: WWDG_CR takes WDGA (already set) and the counter reload from `regs`;
         // the window is open (W = 0x7F), so a feed is never early.
         unsafe { (*pac::WWDG::ptr()).cr().write(|w| w.bits(regs::WWDG_CR)) };

@@ -8,8 +8,8 @@
 //! **Why a UART and not USB (CDC-ACM through the OTG FS port).** With DMA and polling the
 //! link needs no interrupt, so nothing of it competes with the control interrupt, while a
 //! USB device must answer the host within its protocol's deadlines and so needs an
-//! interrupt of its own and a device stack (`usb-device`, `usbd-serial`, the OTG driver)
-//! in an image already near its 64 KiB budget. A UART also goes through any USB-serial
+//! interrupt of its own and a device stack (`usb-device`, `usbd-serial`, the OTG driver).
+//! A UART also goes through any USB-serial
 //! adapter, isolated ones included: on a bench with a 24-48 V bridge that keeps the PC's
 //! ground off the power stage's, which a USB cable straight to the board would not. The
 //! price is the adapter and the rate below.

@@ -112,6 +112,17 @@ pub const WWDG_CFR: u16 = (1 << 9) | 0x7F;
 /// and the counter reload (T, bits 6:0).
 pub const WWDG_CR: u16 = (1 << 7) | board::WINDOW_WATCHDOG.reload() as u16;
 
+// ---------- Independent watchdog (RM0090 section 20.4) ----------
+
+/// IWDG_KR: starts the watchdog (a no-op once it runs).
+pub const IWDG_KEY_START: u16 = 0xCCCC;
+/// IWDG_KR: opens IWDG_PR and IWDG_RLR to writes (until the next reload).
+pub const IWDG_KEY_ACCESS: u16 = 0x5555;
+/// IWDG_KR: reloads the counter (a feed).
+pub const IWDG_KEY_RELOAD: u16 = 0xAAAA;
+/// IWDG_SR.PVU (bit 0) and RVU (bit 1): a prescaler or reload update in progress.
+pub const IWDG_SR_UPDATING: u16 = 0b11;
+
 // ---------- Clock security system (RM0090 sections 7.2.7, 7.3.1, 7.3.3) ----------
 
 /// RCC_CR.CSSON, bit 19: clock security system on.

@@ -8,7 +8,8 @@
 //!
 //! | last run ended by | log | start with |
 //! |---|---|---|
-//! | a refused start, or the clock set-up hanging (no crystal) | the cause; the watchdog restarted a controller that never drove | nothing latched: the start checks everything again |
+//! | a refused start, or the clock set-up hanging | the cause; the watchdog restarted a controller that never drove | nothing latched: the start checks everything again, up to [`START_ATTEMPTS`] times in a row ([`attempt`]) |
+//! | the main loop stalling (the tick stopped feeding the watchdogs) | the cause | `Fault::MainLoopStalled` latched |
 //! | the tick stopping (early wake-up), a panic, a hard fault, a clock failure, an unexpected interrupt | the cause | `Fault::Overrun` latched |
 //! | nothing recorded (the tick stopped with interrupts masked: the reset came without an early wake-up) | "tick stopped, cause not recorded" | `Fault::Overrun` latched |
 //!
@@ -36,10 +37,16 @@ pub enum Cause {
     ClockFailure = 6,
     /// An interrupt without a handler; the detail is its number.
     UnexpectedInterrupt = 7,
+    /// The main loop stopped checking in; the tick stopped feeding the watchdogs.
+    MainLoopStalled = 8,
 }
 
+/// Refused starts in a row after which the board stays refused instead of letting the
+/// watchdog restart it again.
+pub const START_ATTEMPTS: u8 = 3;
+
 impl Cause {
-    const ALL: [Cause; 7] = [
+    const ALL: [Cause; 8] = [
         Cause::ClockSetup,
         Cause::StartRefused,
         Cause::TickStalled,
@@ -47,6 +54,7 @@ impl Cause {
         Cause::HardFault,
         Cause::ClockFailure,
         Cause::UnexpectedInterrupt,
+        Cause::MainLoopStalled,
     ];
 
     /// Whether the controller may have been driving when this stopped it.
@@ -68,6 +76,7 @@ impl defmt::Format for Cause {
             Cause::HardFault => defmt::write!(f, "hard fault"),
             Cause::ClockFailure => defmt::write!(f, "crystal failed (clock security system)"),
             Cause::UnexpectedInterrupt => defmt::write!(f, "unexpected interrupt"),
+            Cause::MainLoopStalled => defmt::write!(f, "main loop stalled"),
         }
     }
 }
@@ -79,16 +88,21 @@ pub struct Record {
     pub cause: Cause,
     /// A detail (refusal code, interrupt number), 0 when none.
     pub detail: u8,
+    /// For a refused start: how many in a row (1 to 15); 0 otherwise.
+    pub attempt: u8,
 }
 
-/// Marks the first word of a valid record (the second is its complement).
-const MAGIC: u32 = 0xE3A5_0000;
+/// Marks the first word of a valid record (bits 31:20; the second word is its complement).
+const MAGIC: u32 = 0xE3A0_0000;
+/// The bits of [`MAGIC`].
+const MAGIC_MASK: u32 = 0xFFF0_0000;
 
 impl Record {
     /// The two words stored.
     #[must_use]
     pub const fn encode(self) -> [u32; 2] {
-        let w = MAGIC | (self.cause as u32) << 8 | self.detail as u32;
+        let attempt = if self.attempt > 15 { 15 } else { self.attempt };
+        let w = MAGIC | (attempt as u32) << 16 | (self.cause as u32) << 8 | self.detail as u32;
         [w, !w]
     }
 
@@ -97,7 +111,7 @@ impl Record {
     #[must_use]
     pub fn decode(words: [u32; 2]) -> Option<Self> {
         let [w, check] = words;
-        if check != !w || w & 0xFFFF_0000 != MAGIC {
+        if check != !w || w & MAGIC_MASK != MAGIC {
             return None;
         }
         let code = (w >> 8) & 0xFF;
@@ -105,6 +119,7 @@ impl Record {
         Some(Self {
             cause,
             detail: (w & 0xFF) as u8,
+            attempt: ((w >> 16) & 0xF) as u8,
         })
     }
 }
@@ -136,7 +151,20 @@ pub fn latched_after(flags: Flags, record: Option<Record>) -> Option<Fault> {
     }
     match record {
         Some(r) if !r.cause.while_driving() => None,
+        Some(r) if r.cause == Cause::MainLoopStalled => Some(Fault::MainLoopStalled),
         _ => Some(Fault::Overrun),
+    }
+}
+
+/// Which attempt in a row this start is: one more than a refused start the watchdog
+/// ended, else the first (a person's reset or power-on starts counting again).
+#[must_use]
+pub fn attempt(flags: Flags, record: Option<Record>) -> u8 {
+    match record {
+        Some(r) if flags.watchdog() && r.cause == Cause::StartRefused => {
+            r.attempt.saturating_add(1)
+        }
+        _ => 1,
     }
 }
 
@@ -156,19 +184,29 @@ mod tests {
     #[test]
     fn records_survive_encoding_and_garbage_is_not_one() {
         for cause in Cause::ALL {
-            let r = Record { cause, detail: 42 };
-            assert_eq!(Record::decode(r.encode()), Some(r));
+            for attempt in [0, 1, 15] {
+                let r = Record {
+                    cause,
+                    detail: 42,
+                    attempt,
+                };
+                assert_eq!(Record::decode(r.encode()), Some(r));
+            }
         }
         assert_eq!(Record::decode([0, 0]), None);
         assert_eq!(Record::decode([0xFFFF_FFFF, 0]), None);
         let [w, c] = Record {
             cause: Cause::Panic,
             detail: 0,
+            attempt: 0,
         }
         .encode();
         assert_eq!(Record::decode([w, c ^ 1]), None);
         // A valid frame around an unknown cause.
         let w = MAGIC | 99 << 8;
+        assert_eq!(Record::decode([w, !w]), None);
+        // The magic's low bits are part of it.
+        let w = (MAGIC ^ 1 << 20) | 2 << 8;
         assert_eq!(Record::decode([w, !w]), None);
     }
 
@@ -177,13 +215,47 @@ mod tests {
         let refused = Some(Record {
             cause: Cause::StartRefused,
             detail: 3,
+            attempt: 1,
         });
         assert_eq!(latched_after(IWDG, refused), None);
         let hung = Some(Record {
             cause: Cause::ClockSetup,
             detail: 0,
+            attempt: 0,
         });
         assert_eq!(latched_after(IWDG, hung), None);
+    }
+
+    #[test]
+    fn refused_starts_are_counted_in_a_row_and_only_after_the_watchdog() {
+        let refused = |attempt| {
+            Some(Record {
+                cause: Cause::StartRefused,
+                detail: 8,
+                attempt,
+            })
+        };
+        assert_eq!(attempt(IWDG, None), 1);
+        assert_eq!(attempt(IWDG, refused(1)), 2);
+        assert_eq!(attempt(IWDG, refused(START_ATTEMPTS)), START_ATTEMPTS + 1);
+        // A person's reset starts again from the first.
+        assert_eq!(attempt(Flags::default(), refused(2)), 1);
+        // Encoded, the count saturates at 15 and still stops the retries.
+        let [w, c] = refused(200).unwrap().encode();
+        let back = Record::decode([w, c]);
+        assert_eq!(back.map(|r| r.attempt), Some(15));
+        assert!(attempt(IWDG, back) > START_ATTEMPTS);
+    }
+
+    #[test]
+    fn a_main_loop_that_stalled_is_named_after_the_reset() {
+        let r = Some(Record {
+            cause: Cause::MainLoopStalled,
+            detail: 0,
+            attempt: 0,
+        });
+        assert_eq!(latched_after(WWDG, r), Some(Fault::MainLoopStalled));
+        assert_eq!(latched_after(Flags::default(), r), None);
     }
 
     #[test]
@@ -195,7 +267,11 @@ mod tests {
             Cause::ClockFailure,
             Cause::UnexpectedInterrupt,
         ] {
-            let r = Some(Record { cause, detail: 0 });
+            let r = Some(Record {
+                cause,
+                detail: 0,
+                attempt: 0,
+            });
             assert_eq!(latched_after(WWDG, r), Some(Fault::Overrun), "{cause:?}");
             assert_eq!(latched_after(IWDG, r), Some(Fault::Overrun), "{cause:?}");
         }
@@ -209,6 +285,7 @@ mod tests {
         let stalled = Some(Record {
             cause: Cause::TickStalled,
             detail: 0,
+            attempt: 0,
         });
         assert_eq!(latched_after(Flags::default(), stalled), None);
         assert_eq!(latched_after(Flags::default(), None), None);

@@ -8,7 +8,17 @@
 //! | [`Mode::Reverse`] | high | low | `-Vbus` | 0 V (low sides on) | `-duty Vbus` |
 //!
 //! A voltage command becomes a duty from the measured bus voltage, saturated at the bus
-//! voltage. Coast (`duty 0, enable low`) is the safe state; it is also where the bridge
+//! voltage.
+//!
+//! **Maximum modulation.** The coil current is sampled in the middle of the off-time, its
+//! converter's sampling phase ending there ([`CURRENT_SAMPLING_S`]); a switching edge
+//! inside that phase, or less than [`CURRENT_SETTLE_S`] before it, puts the edge's
+//! ringing on the sample. The off-time is `(1 - duty)` of the period, centred on the
+//! sample, so every duty up to [`max_modulation`] keeps the sample clear; above it and
+//! below 100 % (no edge at all) a duty is snapped to the nearer of the two
+//! ([`HBridge::apply_clear`]), and the applied voltage [`Drive::u_v`] is the snapped one,
+//! which the law and the detectors see. At 20 kHz that is 90.7 %: duties of 90.7-95.3 %
+//! become 90.7 %, those of 95.3-100 % become 100 %. Coast (`duty 0, enable low`) is the safe state; it is also where the bridge
 //! starts. Leaving coast is `direction, enable high, duty`; a reversal is
 //! `duty 0, direction, duty`: the direction only ever changes right after a zero duty.
 //!
@@ -84,6 +94,33 @@ pub const BOARD_PWM_ARR: u16 = 4200;
 // 4201 fits u16 (checked by the compiler: a const overflow is an error).
 #[allow(clippy::arithmetic_side_effects)]
 pub const BOARD_MAX_DUTY: u16 = BOARD_PWM_ARR + 1;
+
+/// The current's sampling phase on the reference board \[s\]: 28 cycles of the 21 MHz
+/// converter clock, ending at the middle of the PWM off-time (the firmware's
+/// `board::ADC_SAMPLE_CYCLES` and `board::ADC_CLK_HZ`, which it checks against this).
+pub const CURRENT_SAMPLING_S: f32 = 28.0 / 21.0e6;
+/// Time the current sensor's output takes to settle after a switching edge \[s\]: a
+/// current-sense amplifier with PWM rejection (INA240 class) settles within 1 us of a
+/// 48 V edge.
+pub const CURRENT_SETTLE_S: f32 = 1.0e-6;
+
+/// The highest duty fraction at `rate_hz` whose off-time keeps the current's sample and
+/// the settling before it clear of both switching edges: `1 - 2 (sampling + settling)
+/// rate` (see the module documentation).
+///
+/// Above `1 / (4 (sampling + settling))` (107 kHz) not even a half-duty off-time holds
+/// the sampling phase: no board samples the current at such a rate, which only the
+/// simulator's near-continuous reproduction of the paper uses, with an ideal sample.
+/// There the result is 1: nothing is snapped.
+#[must_use]
+pub fn max_modulation(rate_hz: f32) -> f32 {
+    let m = 1.0 - 2.0 * (CURRENT_SAMPLING_S + CURRENT_SETTLE_S) * rate_hz;
+    if m >= 0.5 {
+        m
+    } else {
+        1.0
+    }
+}
 
 /// What the bridge was set to.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -182,6 +219,22 @@ impl<P: SetDutyCycle, O: OutputPin> HBridge<P, O> {
     /// A failed PWM or pin operation; the bridge is then driven to coast (best effort).
     #[inline]
     pub fn apply(&mut self, u_v: f32, vbus_v: f32) -> Result<Drive, BridgeError<P, O>> {
+        self.apply_clear(u_v, vbus_v, 1.0)
+    }
+
+    /// As [`HBridge::apply`], with every duty between `clear` (a fraction, the
+    /// [`max_modulation`] of the rate) and 100 % snapped to the nearer of the two (see
+    /// the module documentation).
+    ///
+    /// # Errors
+    /// As [`HBridge::apply`].
+    #[inline]
+    pub fn apply_clear(
+        &mut self,
+        u_v: f32,
+        vbus_v: f32,
+        clear: f32,
+    ) -> Result<Drive, BridgeError<P, O>> {
         if !(u_v.is_finite() && vbus_v.is_finite() && vbus_v > 0.0) {
             return self.coast();
         }
@@ -194,7 +247,11 @@ impl<P: SetDutyCycle, O: OutputPin> HBridge<P, O> {
         } else {
             self.mode
         };
-        let duty = duty_code(u_v.abs() / vbus_v, self.max_duty);
+        let duty = snap(
+            duty_code(u_v.abs() / vbus_v, self.max_duty),
+            clear_code(clear, self.max_duty),
+            self.max_duty,
+        );
         match self.switch(want, duty) {
             Ok(()) => {
                 let u = f32::from(duty) / f32::from(self.max_duty.max(1)) * vbus_v;
@@ -283,6 +340,38 @@ impl OutputPin for NullPin {
     fn set_high(&mut self) -> Result<(), Self::Error> {
         self.0 = true;
         Ok(())
+    }
+}
+
+/// The highest compare value at or below the fraction `clear` of `max` (`max` for 1 and
+/// above, 0 for `NaN` and below).
+#[inline]
+#[must_use]
+pub fn clear_code(clear: f32, max: u16) -> u16 {
+    let c = clear * f32::from(max);
+    if c >= f32::from(max) {
+        max
+    } else if c >= 0.0 {
+        // In [0, max): the truncation is the intended rounding down.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let code = c as u16;
+        code
+    } else {
+        0
+    }
+}
+
+/// `duty` snapped to the nearer of `clear` and `max` when it lies strictly between them
+/// (a tie goes to `max`: no edge).
+#[inline]
+#[must_use]
+pub fn snap(duty: u16, clear: u16, max: u16) -> u16 {
+    if duty <= clear || duty >= max {
+        duty
+    } else if duty.wrapping_sub(clear) >= max.wrapping_sub(duty) {
+        max
+    } else {
+        clear
     }
 }
 
@@ -543,5 +632,44 @@ mod tests {
         assert_eq!(duty_code(-0.5, 1000), 0);
         assert_eq!(duty_code(f32::NAN, 1000), 0);
         assert_eq!(duty_code(f32::INFINITY, 1000), 1000);
+    }
+
+    #[test]
+    fn the_maximum_modulation_keeps_the_current_sample_clear_of_the_edges() {
+        // 20 kHz: 2.33 us of the 25 us half period before the sample, either side.
+        let m = max_modulation(20_000.0);
+        assert!((m - 0.906_67).abs() < 1e-4, "{m}");
+        // The off-time, centred on the sample, is `(1 - m)` of the period: each half
+        // holds the sampling phase and the settling exactly.
+        let half_off_s = (1.0 - m) / 20_000.0 / 2.0;
+        assert!((half_off_s - (CURRENT_SAMPLING_S + CURRENT_SETTLE_S)).abs() < 1e-9);
+        assert!((max_modulation(50_000.0) - 0.766_67).abs() < 1e-4);
+        // Past 107 kHz no converter samples; the near-continuous model is left unsnapped.
+        assert!((max_modulation(100_000.0) - 0.533_33).abs() < 1e-4);
+        assert_eq!(max_modulation(110_000.0), 1.0);
+        assert_eq!(max_modulation(1.0e6), 1.0);
+        // On the reference board's timer: the highest clear compare value, and the snap.
+        let max = BOARD_MAX_DUTY;
+        let clear = clear_code(m, max);
+        assert_eq!(clear, 3808);
+        assert_eq!(snap(3808, clear, max), 3808);
+        assert_eq!(snap(3809, clear, max), 3808);
+        assert_eq!(snap(4004, clear, max), 3808);
+        assert_eq!(snap(4005, clear, max), max);
+        assert_eq!(snap(4200, clear, max), max);
+        assert_eq!(snap(max, clear, max), max);
+        assert_eq!(snap(100, clear, max), 100);
+        assert_eq!(clear_code(1.0, max), max);
+        assert_eq!(clear_code(f32::NAN, max), 0);
+        // Through the bridge: 95 % of the bus becomes 90.7 %, 97 % becomes 100 %, and the
+        // drive reports the voltage applied.
+        let mut b = HBridge::new(NullPwm::new(max), NullPin(false), NullPin(false)).unwrap();
+        let d = b.apply_clear(0.95 * 24.0, 24.0, m).unwrap();
+        assert_eq!(d.duty, clear);
+        assert!((d.u_v - 24.0 * f32::from(clear) / f32::from(max)).abs() < 1e-5);
+        let d = b.apply_clear(-0.97 * 24.0, 24.0, m).unwrap();
+        assert_eq!((d.mode, d.duty, d.u_v), (Mode::Reverse, max, -24.0));
+        let d = b.apply_clear(0.5 * 24.0, 24.0, m).unwrap();
+        assert_eq!(d.duty, duty_code(0.5, max));
     }
 }

@@ -1028,16 +1028,18 @@ fn commission_tick<P: SetDutyCycle, O: OutputPin>(
         }
     };
     match step {
-        commission::Step::Drive(u_v) => match b.apply(u_v, status.measurement.vbus_v) {
-            Ok(drive) => {
-                status.drive = drive;
-                *last_drive_v = drive.u_v;
+        commission::Step::Drive(u_v) => {
+            match b.apply_clear(u_v, status.measurement.vbus_v, cfg.max_modulation()) {
+                Ok(drive) => {
+                    status.drive = drive;
+                    *last_drive_v = drive.u_v;
+                }
+                Err(_) => {
+                    status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
+                    identified = Some(Err(commission::Abort::Fault));
+                }
             }
-            Err(_) => {
-                status.fault = Some(st.supervisor.trip(Fault::BridgeIo));
-                identified = Some(Err(commission::Abort::Fault));
-            }
-        },
+        }
         commission::Step::Done(r) => {
             if b.coast().is_err() {
                 status.fault = Some(st.supervisor.trip(Fault::BridgeIo));

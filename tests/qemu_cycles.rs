@@ -122,8 +122,8 @@ fn monitor(
 }
 
 #[inline(never)]
-fn drive(b: &mut Bridge, u_v: f32, vbus_v: f32) -> ema::bridge::Drive {
-    match b.apply(u_v, vbus_v) {
+fn drive(b: &mut Bridge, u_v: f32, vbus_v: f32, clear: f32) -> ema::bridge::Drive {
+    match b.apply_clear(u_v, vbus_v, clear) {
         Ok(d) => d,
         Err(e) => match e {
             ema::bridge::Error::Pwm(e) | ema::bridge::Error::Pin(e) => match e {},
@@ -306,7 +306,12 @@ fn main() -> ! {
             );
 
             let t0 = ctr.now();
-            let d = drive(&mut b2, black_box(s.output.u_v), black_box(m.vbus_v));
+            let d = drive(
+                &mut b2,
+                black_box(s.output.u_v),
+                black_box(m.vbus_v),
+                cfg.max_modulation(),
+            );
             let t1 = ctr.now();
             counts.stages[6][n] = t1.wrapping_sub(t0).wrapping_sub(overhead);
             ensure!(

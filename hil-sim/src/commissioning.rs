@@ -1479,7 +1479,9 @@ pub fn run_on(a: &Actuator, plant: &Params, draw: Option<&Draw>) -> Result<Outco
         match id.step(&m, applied) {
             Step::Drive(u) => {
                 // The mock pins cannot fail.
-                applied = bridge.apply(u, m.vbus_v).map_or(0.0, |d| d.u_v);
+                applied = bridge
+                    .apply_clear(u, m.vbus_v, cfg.max_modulation())
+                    .map_or(0.0, |d| d.u_v);
             }
             Step::Done(r) => {
                 report = r;

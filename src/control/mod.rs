@@ -147,6 +147,7 @@ impl Settings {
             sense: self.sense,
             limits: self.limits,
             stroke_m: self.plant.stroke_m,
+            max_modulation: crate::bridge::max_modulation(self.rate_hz),
         })
     }
 }
@@ -163,6 +164,9 @@ pub struct Config {
     monitors: monitor::Config,
     limits: Limits,
     stroke_m: f32,
+    /// The highest duty that keeps the current's sample clear of the switching edges
+    /// ([`crate::bridge::max_modulation`]).
+    max_modulation: f32,
 }
 
 /// The controller's mutable state.
@@ -260,6 +264,13 @@ impl Config {
     #[must_use]
     pub const fn ts_s(&self) -> f32 {
         self.ts_s
+    }
+
+    /// The highest duty fraction that keeps the current's sample clear of the switching
+    /// edges at this rate (the bridge snaps those above it: [`HBridge::apply_clear`]).
+    #[must_use]
+    pub const fn max_modulation(&self) -> f32 {
+        self.max_modulation
     }
 
     /// Converter calibration.
@@ -449,7 +460,7 @@ impl Config {
             status.fault = Some(state.supervisor.trip(fault));
             return self.safe(state, bridge, status);
         }
-        match bridge.apply(status.output.u_v, m.vbus_v) {
+        match bridge.apply_clear(status.output.u_v, m.vbus_v, self.max_modulation) {
             Ok(drive) => {
                 status.drive = drive;
                 state.u_prev_v = drive.u_v;

@@ -226,7 +226,10 @@ pub const ADC_END_AFTER_TOP_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
     * TIM1_COUNTS_PER_ADC_CYCLE
     - ADC_TRIGGER_LEAD_COUNTS;
 /// Highest duty \[per mille\] whose off-time holds the whole sequence, trigger to last
-/// conversion: above it, a switching edge falls inside a conversion.
+/// conversion: above it, a switching edge falls inside a conversion. The current's own
+/// sample is kept clear by the tick up to 100 % (`ema::bridge::max_modulation`: duties
+/// between 90.7 % and 100 % at 20 kHz are snapped to one or the other); the position and
+/// the bus, converted 1.9 us either side of it, are filtered and far less sensitive.
 pub const SEQUENCE_IN_OFF_TIME_MAX_PERMILLE: u32 = 1000
     - ((if ADC_TRIGGER_LEAD_COUNTS > ADC_END_AFTER_TOP_COUNTS {
         ADC_TRIGGER_LEAD_COUNTS
@@ -444,6 +447,11 @@ const _: () = {
     assert!(PWM_HZ != 20_000 || PWM_ARR == ema::bridge::BOARD_PWM_ARR as u32);
     assert!(CONTROL_PERIOD_CYCLES * CONTROL_RATE_HZ == SYSCLK_HZ);
     assert!(ADC_CLK_HZ <= 36_000_000);
+    // The core's maximum modulation keeps this board's current sample clear.
+    assert!(
+        ema::bridge::CURRENT_SAMPLING_S == ADC_SAMPLE_CYCLES as f32 / ADC_CLK_HZ as f32,
+        "ema::bridge::CURRENT_SAMPLING_S must be the current's sampling phase"
+    );
     // The conversions end early in the period: the tick has over 40 us left.
     assert!(ADC_SEQUENCE_NS < 10_000);
     assert!(SYSCLK_HZ.is_multiple_of(HSE_HZ));

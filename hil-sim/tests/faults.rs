@@ -157,7 +157,7 @@ const TABLES: [(&str, [Pin; 12]); 7] = [
             Named(600.0),
             Named(100.0),
             Named(200.0),
-            Named(300.0),
+            Named(350.0),
             Named(100.0),
             Named(100.0),
             Named(200.0),

@@ -30,6 +30,16 @@
 //! grows with the gap is weaker (`energy_consistent_share`), and `mu_lo` has to hold
 //! for it too.
 //!
+//! ## Physical consistency
+//!
+//! A design is an actuator a user could have only if its coil holds the armature anywhere
+//! on the stroke with a margin, its supply drives the rated current through the hot coil,
+//! and its iron is not saturated where it is held ([`Consistency`],
+//! [`Actuator::check_consistency`]). The rules judge a design before gains are chosen for
+//! it (the host's `tune` refuses a file that breaks one, with the rule named); the
+//! settings themselves do not check them, so that an actuator identified on a bench, which
+//! is what it is, still gets a controller when it sits near a margin.
+//!
 //! ## Derived settings and why
 //!
 //! | setting | rule |
@@ -715,6 +725,95 @@ impl Actuator {
         Ok(settings)
     }
 
+    /// What the physical-consistency rules measure on this actuator (see
+    /// [`Consistency`]).
+    ///
+    /// # Errors
+    /// As [`Actuator::plant`].
+    pub fn consistency(&self) -> Result<Consistency, Error> {
+        let plant = self.plant()?;
+        let envelope = plant.envelope()?;
+        let m = &self.mechanics;
+        let c = &self.coil;
+        let t = &self.tolerance;
+        // The current that holds each point of the stroke against the stiffest spring on
+        // the weakest magnet, the largest over the stroke (both stops included); and the
+        // flux density in an airgap where the nominal magnet holds it (N i / rho(g) over
+        // the gap's surface).
+        let mut hold_a: f32 = 0.0;
+        let mut flux_density_t: f32 = 0.0;
+        for k in 0..=CONSISTENCY_POINTS {
+            let x = m.stroke_m * f32::from(k) / f32::from(CONSISTENCY_POINTS);
+            let g = plant.gap_m(x);
+            let spring_n = math::max((1.0 + t.spring) * plant.spring_force_n(x), 0.0);
+            hold_a = math::max(hold_a, math::sqrt(2.0 * spring_n / envelope.mu_lo(g)));
+            let nominal_a =
+                math::sqrt(2.0 * spring_n / plant.magnetics.force_coefficient_h_per_m(g));
+            let flux_wb = c.turns * nominal_a / plant.magnetics.reluctance_per_h(g);
+            flux_density_t = math::max(
+                flux_density_t,
+                flux_wb / plant.magnetics.fringing.surface_m2(g),
+            );
+        }
+        let drive_v = self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz);
+        let hot_v = (1.0 + t.resistance) * c.resistance_ohm * c.rated_current_a;
+        Ok(Consistency {
+            hold_ratio: self.current_limit_a() / hold_a,
+            drive_ratio: drive_v / hot_v,
+            flux_density_t,
+        })
+    }
+
+    /// The physical-consistency rules ([`Consistency`]): the first one broken, named.
+    ///
+    /// # Errors
+    /// The field the rule bounds, with the rule's text as the reason.
+    pub fn check_consistency(&self) -> Result<Consistency, Error> {
+        let k = self.consistency()?;
+        let broken = |param, value, rule, derived| Error {
+            param,
+            value,
+            reason: Reason::Derived {
+                what: rule,
+                derived,
+            },
+        };
+        if k.hold_ratio.partial_cmp(&1.0) == Some(core::cmp::Ordering::Less) {
+            return Err(broken(
+                "coil.rated_current_a",
+                self.coil.rated_current_a,
+                RULE_HOLD,
+                k.hold_ratio,
+            ));
+        }
+        if k.drive_ratio.partial_cmp(&1.0) == Some(core::cmp::Ordering::Less) {
+            return Err(broken(
+                "board.supply_v",
+                self.board.supply_v,
+                RULE_DRIVE,
+                k.drive_ratio,
+            ));
+        }
+        if k.flux_density_t.partial_cmp(&SATURATION_T) == Some(core::cmp::Ordering::Greater) {
+            return Err(broken(
+                "coil.turns",
+                self.coil.turns,
+                RULE_SATURATION,
+                k.flux_density_t,
+            ));
+        }
+        if !(k.hold_ratio.is_finite() && k.drive_ratio.is_finite() && k.flux_density_t.is_finite())
+        {
+            return Err(broken(
+                "coil.rated_current_a",
+                self.coil.rated_current_a,
+                RULE_HOLD,
+                k.hold_ratio,
+            ));
+        }
+        Ok(k)
+    }
+
     /// The fault detectors, from the ratings, the converters' resolution and the
     /// settling target.
     fn monitors(
@@ -760,6 +859,54 @@ impl Actuator {
         })
     }
 }
+
+/// What the physical-consistency rules measure: an actuator that breaks one is not one a
+/// user could have (its coil cannot hold its armature, its supply cannot drive its coil, or
+/// its iron saturates where the model says it does not), and [`Actuator::settings`]
+/// refuses it with the rule's text.
+///
+/// | rule | measure | limit |
+/// |---|---|---|
+/// | the law's current limit holds the armature anywhere on the stroke, on every plant of the uncertainty set | [`Consistency::hold_ratio`] | at least 1 |
+/// | the supply drives the rated current through the hot coil | [`Consistency::drive_ratio`] | at least 1 |
+/// | the iron is not saturated where the armature is held | [`Consistency::flux_density_t`] | at most [`SATURATION_T`] |
+///
+/// Each limit is what the physics needs, not a design margin: a coil that holds its
+/// stroke with a tenth to spare is a better design than one with 1 %, but both are
+/// actuators, and `tune` finds out by simulation whether the loop can work with the room
+/// left. The iron may saturate above the holding current (a valve's closed stop at its
+/// rated current often does): that is a transient whose force the model overstates;
+/// where the armature rests, the model must be right.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Consistency {
+    /// The law's current limit over the largest current that holds a point of the stroke
+    /// (stops included) against the spring at the stiff end of its tolerance, on the
+    /// weakest magnet the surface bounds allow \[-\].
+    pub hold_ratio: f32,
+    /// The largest voltage the bridge applies from the supply (at the rate's
+    /// [`crate::bridge::max_modulation`]) over the voltage the coil drops at the rated
+    /// current with its resistance at the hot end of its tolerance \[-\].
+    pub drive_ratio: f32,
+    /// The largest flux density in an airgap where the nominal magnet holds the armature
+    /// against the stiffest spring, over the stroke \[T\].
+    pub flux_density_t: f32,
+}
+
+/// Largest [`Consistency::flux_density_t`]: soft magnetic steels of solenoid valves and
+/// positioners (ferritic stainless 430F, 1.5-1.7 T; pure iron 2.1 T) leave their linear
+/// range about there, and the model's reluctance has no saturation, so above it the model
+/// overstates the force \[T\].
+pub const SATURATION_T: f32 = 1.6;
+/// Points of the stroke (plus one) at which the hold is checked: within a 3 % step of the
+/// stroke, the holding current changes by well under the hold margin \[-\].
+const CONSISTENCY_POINTS: u16 = 32;
+const RULE_HOLD: &str = "the law's current limit over the current that holds the armature \
+                         anywhere on the stroke against the stiffest spring on the weakest \
+                         magnet (rule: at least 1)";
+const RULE_DRIVE: &str = "the bridge's largest voltage from the supply over the hot coil's \
+                          drop at the rated current (rule: at least 1)";
+const RULE_SATURATION: &str = "the flux density in the airgap where the magnet holds the \
+                               armature [T] (rule: at most 1.6, where soft steels saturate)";
 
 /// Standard deviations of the difference of two converter readings that a noise
 /// allowance spans \[-\]: a healthy comparison falls outside it with a probability of
@@ -911,4 +1058,82 @@ fn energy_consistent_share(
         }
     }
     lo
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rule's text of a refusal, or `None` when the actuator is accepted.
+    fn refused_by(a: &Actuator) -> Option<(&'static str, &'static str)> {
+        a.settings().unwrap();
+        match a.check_consistency() {
+            Ok(_) => None,
+            Err(Error {
+                param,
+                reason: Reason::Derived { what, .. },
+                ..
+            }) => Some((param, what)),
+            Err(e) => panic!("refused for another reason: {e}"),
+        }
+    }
+
+    #[test]
+    fn the_product_meets_every_consistency_rule_with_room() {
+        let k = Actuator::PRODUCT.check_consistency().unwrap();
+        // 12 A rated against about 5.4 A to hold the open end of the stroke on the weakest
+        // magnet; 24 V against 5.8 V on the hot coil; 0.11 T where it is held.
+        assert!(k.hold_ratio > 2.0 && k.hold_ratio < 2.4, "{k:?}");
+        assert!(k.drive_ratio > 3.5 && k.drive_ratio < 4.0, "{k:?}");
+        assert!(k.flux_density_t > 0.05 && k.flux_density_t < 0.2, "{k:?}");
+    }
+
+    #[test]
+    fn a_coil_too_weak_to_hold_the_stroke_is_refused_by_the_hold_rule() {
+        let mut a = Actuator::PRODUCT;
+        // The hold needs 5.38 A on the weakest plant; the law's limit is 98 % of the rating.
+        a.coil.rated_current_a = 5.4;
+        a.coil.peak_current_a = 6.0;
+        assert_eq!(refused_by(&a), Some(("coil.rated_current_a", RULE_HOLD)));
+        a.coil.rated_current_a = 5.6;
+        assert_eq!(refused_by(&a), None);
+    }
+
+    #[test]
+    fn a_supply_that_cannot_drive_the_rated_current_is_refused_by_the_drive_rule() {
+        let mut a = Actuator::PRODUCT;
+        // The hot coil drops 1.2 x 0.4 x 12 = 5.76 V; the bridge gives about 0.91 of the
+        // supply at 20 kHz.
+        a.board.supply_v = 6.0;
+        assert_eq!(refused_by(&a), Some(("board.supply_v", RULE_DRIVE)));
+        a.board.supply_v = 6.5;
+        assert_ne!(refused_by(&a).map(|r| r.1), Some(RULE_DRIVE));
+    }
+
+    #[test]
+    fn iron_saturated_where_the_armature_is_held_is_refused() {
+        let mut a = Actuator::PRODUCT;
+        // A pole face a tenth as wide on each side: a hundredth of the surface, the same
+        // force needs ten times the flux density (about 1.1 T -> still inside), so also a
+        // spring twice as stiff.
+        if let Magnetics::Geometry {
+            ref mut pole_a_m,
+            ref mut pole_b_m,
+            ..
+        } = a.magnetics
+        {
+            *pole_a_m *= 0.1;
+            *pole_b_m *= 0.1;
+        }
+        a.coil.turns *= 10.0;
+        let k = a.consistency().unwrap();
+        assert!(
+            k.flux_density_t > 1.0 && k.flux_density_t < SATURATION_T,
+            "{k:?}"
+        );
+        a.mechanics.spring_n_per_m *= 3.0;
+        let k = a.consistency().unwrap();
+        assert!(k.flux_density_t > SATURATION_T, "{k:?}");
+        assert_eq!(refused_by(&a).map(|r| r.1), Some(RULE_SATURATION));
+    }
 }

@@ -44,6 +44,7 @@
 //! | [`mod@montecarlo`] | parallel, seeded runs over drawn plants |
 //! | [`accuracy`] | how many RK4 substeps per ISR period a scenario needs, measured |
 //! | [`actuator`] | actuator files: the family in the repository, loading, tuned files |
+//! | [`drawn`] | drawn actuators: plausible actuators for judging the rules out of sample |
 //! | [`catalog`] | scenario files: the embedded defaults, loading by name or from a file |
 //! | [`compare`] | the comparison of the laws over ISR rates and supplies |
 //! | [`faults`] | fault injection: the fault the supervisor must name, and how fast |
@@ -65,6 +66,7 @@ pub mod catalog;
 pub mod cli;
 pub mod commissioning;
 pub mod compare;
+pub mod drawn;
 mod error;
 pub mod faults;
 pub mod golden;

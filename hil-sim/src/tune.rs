@@ -368,6 +368,11 @@ pub struct Evaluation {
     pub complete: bool,
     /// The metric furthest from its target, and the rate where.
     pub limiting: Option<(String, f64)>,
+    /// The corner plant of [`corners`] where the limiting metric is worst (0 is the
+    /// nominal plant; `None`: not run on a plant).
+    pub corner: Option<usize>,
+    /// The detector that fired first there, when the limiting metric is a fault.
+    pub detector: Option<String>,
     /// Whether it met every target on the validation draws (`None`: not validated).
     pub validated: Option<bool>,
 }
@@ -439,7 +444,8 @@ fn judge(w: &Worst, t: &Targets) -> (f64, &'static str) {
 /// period; validates the choice on `validation_draws` drawn plants per rate.
 ///
 /// # Errors
-/// No rate; an actuator whose settings do not derive; a scenario that does not validate.
+/// No rate; an actuator whose settings do not derive or that breaks a physical rule
+/// ([`Actuator::check_consistency`]); a scenario that does not validate.
 #[allow(clippy::too_many_lines)]
 pub fn tune(
     name: &str,
@@ -453,6 +459,7 @@ pub fn tune(
         .first()
         .ok_or_else(|| Error::param("rates_hz", 0.0, "tune needs at least one rate"))?;
     let base = act.settings().map_err(Error::Actuator)?;
+    act.check_consistency().map_err(Error::Actuator)?;
     let plants = corners(&base.plant);
     let candidates = space.candidates(f64::from(act.board.rate_hz));
 
@@ -469,6 +476,8 @@ pub fn tune(
                     score: f64::INFINITY,
                     complete: false,
                     limiting: None,
+                    corner: None,
+                    detector: None,
                     validated: None,
                 };
                 if !theorem.holds() {
@@ -477,10 +486,12 @@ pub fn tune(
                 }
                 let sc = condition(name, act, c, own_rate, substeps)?;
                 let t = Targets::for_scenario(&sc);
-                let w = Worst::of([&crate::run(&sc)?.metrics], &t);
-                let (score, what) = judge(&w, &t);
+                let m = crate::run(&sc)?.metrics;
+                let (score, what) = judge(&Worst::of([&m], &t), &t);
                 e.screen = score;
                 e.limiting = Some((what.into(), own_rate));
+                e.corner = Some(0);
+                e.detector = first_detector(&m);
                 Ok(e)
             })
             .collect()
@@ -597,6 +608,15 @@ impl Search<'_> {
                 if s > score {
                     score = s;
                     limiting = Some((what.to_owned(), rate));
+                    // The plant where it is worst, and what fired there.
+                    let at = runs
+                        .iter()
+                        .enumerate()
+                        .map(|(k, m)| (k, judge(&Worst::of([m], &t), &t).0))
+                        .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a })
+                        .0;
+                    e.corner = Some(at);
+                    e.detector = runs.get(at).and_then(first_detector);
                 }
                 worst.push(w);
                 if score > 1.0 {
@@ -632,6 +652,43 @@ impl Search<'_> {
         }
         Ok(None)
     }
+}
+
+/// The fault that latched first in a run, by name.
+fn first_detector(m: &crate::Metrics) -> Option<String> {
+    m.first_fault
+        .as_ref()
+        .and_then(|f| f.fault)
+        .map(|f| f.name().to_owned())
+}
+
+/// Corner plant `k` of [`corners`] in words: `the nominal plant`, or which end of each
+/// tolerance and which airgap.
+#[must_use]
+pub fn corner_name(k: usize) -> String {
+    let Some(j) = k.checked_sub(1) else {
+        return "the nominal plant".into();
+    };
+    let bits = j / 3;
+    let end = |bit: usize| {
+        if bits & (1 << bit) == 0 {
+            "low"
+        } else {
+            "high"
+        }
+    };
+    let surface = match j % 3 {
+        0 => "the smallest constant surface",
+        1 => "the largest constant surface",
+        _ => "a surface growing across the bounds",
+    };
+    format!(
+        "corner plant {k} (mass {}, spring {}, friction {}, resistance {}, {surface})",
+        end(0),
+        end(1),
+        end(2),
+        end(3)
+    )
 }
 
 /// What keeps the best candidate from passing, in words: the lowest complete score, or
@@ -692,8 +749,16 @@ fn diagnose(evaluations: &[Evaluation]) -> String {
         }
         "current" => "the moves need more than the rated current on some corner plant",
         "voltage" => "the law asks for more than the supply",
-        "fault" => "a fault detector fires on a corner plant",
+        "fault" => "a fault detector fires",
         _ => "",
+    };
+    let plant = best
+        .corner
+        .map_or_else(String::new, |k| format!(" on {}", corner_name(k)));
+    let why = match &best.detector {
+        Some(d) if what == "fault" => format!("the `{d}` detector fires{plant}"),
+        _ if why.is_empty() => plant.trim_start().to_owned(),
+        _ => format!("{why} ({})", plant.trim_start()),
     };
     format!(
         "no candidate meets every target {}; the best (alpha {} 1/s, observer {} rad/s, \
@@ -762,6 +827,41 @@ mod tests {
             (lo - 0.09).abs() < 1e-6 && (hi - 0.11).abs() < 1e-6,
             "{lo} {hi}"
         );
+    }
+
+    #[test]
+    fn corner_names_say_which_end_of_each_tolerance() {
+        let c = corners(&ema::model::Plant::paper());
+        let nominal = &c[0];
+        assert_eq!(corner_name(0), "the nominal plant");
+        for (k, q) in c.iter().enumerate().skip(1) {
+            let name = corner_name(k);
+            assert_eq!(
+                name.contains("mass high"),
+                q.mass_kg > nominal.mass_kg,
+                "{name}"
+            );
+            assert_eq!(
+                name.contains("spring high"),
+                q.spring_n_per_m > nominal.spring_n_per_m,
+                "{name}"
+            );
+            assert_eq!(
+                name.contains("friction high"),
+                q.friction_n_s_per_m > nominal.friction_n_s_per_m,
+                "{name}"
+            );
+            assert_eq!(
+                name.contains("resistance high"),
+                q.resistance_ohm > nominal.resistance_ohm,
+                "{name}"
+            );
+            assert_eq!(
+                name.contains("growing"),
+                q.force == ForceModel::EnergyConsistent,
+                "{name}"
+            );
+        }
     }
 
     #[test]

@@ -478,3 +478,52 @@ fn montecarlo_with_converter_errors_keeps_the_sensor_share_apart() {
         "{printed}"
     );
 }
+
+/// `actuators --draw` writes one file per drawn actuator that every command takes; `tune`
+/// on a hand-written file that breaks a physical rule refuses it with the rule named,
+/// before any run.
+#[test]
+fn drawn_files_load_and_tune_refuses_a_file_that_breaks_a_rule_by_name() {
+    let out = dir("drawn");
+    let args = hil_sim::cli::actuators::Args {
+        draw: Some(3),
+        seed: 5,
+        out: out.clone(),
+        ..Default::default()
+    };
+    let mut printed = Vec::new();
+    hil_sim::cli::actuators::run(&args, &mut printed).unwrap();
+    let printed = String::from_utf8(printed).unwrap();
+    for k in 0..3 {
+        let path = out.join(format!("drawn-5-{k:03}.toml"));
+        let (_, act) = hil_sim::actuator::load(path.to_str().unwrap()).unwrap();
+        assert_eq!(act, hil_sim::drawn::draw_one(5, k).unwrap().actuator);
+        assert!(printed.contains(&format!("drawn-5-{k:03}")), "{printed}");
+    }
+    // The valve with a coil rated 1.5 A: 1.53 A holds its stroke on the weakest plant.
+    let weak = hil_sim::actuator::member("valve")
+        .unwrap()
+        .text
+        .replace("rated_current_a = 2.0", "rated_current_a = 1.5");
+    let file = out.join("weak-valve.toml");
+    std::fs::write(&file, weak).unwrap();
+    let args = tune::Args {
+        actuator: file.display().to_string(),
+        rates_hz: Some(vec![20e3]),
+        validate: 4,
+        substeps: 1,
+        tuned: None,
+        quiet: true,
+        output: Output {
+            out: Some(out.clone()),
+        },
+    };
+    let e = tune::run(&args, &mut Vec::new()).unwrap_err().to_string();
+    assert!(
+        e.contains("coil.rated_current_a = 1.5")
+            && e.contains("holds the armature anywhere on the stroke")
+            && e.contains("rule: at least 1)"),
+        "{e}"
+    );
+    assert!(!out.join("weak-valve.tuned.toml").exists());
+}

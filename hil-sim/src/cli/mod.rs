@@ -15,7 +15,7 @@
 //! | (none), `paper` | the paper's example at 1 MHz and at 20 kHz: claims vs measured, figures |
 //! | `run <scenario>` | one scenario (embedded name or TOML file): metrics per segment, trace, figures |
 //! | `scenarios [name]` | lists the embedded scenarios, or prints one's TOML |
-//! | `actuators [name]` | lists the family of actuators, or prints one's file |
+//! | `actuators [name]` | lists the family of actuators, or prints one's file; `--draw N --seed S` writes `N` drawn actuators |
 //! | `montecarlo <scenario>` | draws plants from the uncertainty set: worst case of each metric, the product's targets, CSV of all draws |
 //! | `compare` | the three laws at 10, 20, 50 kHz and 24, 48, 150 V: table, CSV, figure |
 //! | `tune [actuator]` | designs the practical law's gains for an actuator, writes its tuned file |

@@ -92,6 +92,8 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         "--validate = 0: a candidate is validated on at least one drawn plant"
     );
     let (name, act, source) = actuator::load_untuned(&args.actuator)?;
+    act.check_consistency()
+        .map_err(|e| anyhow::anyhow!("`{source}` is not an actuator a user could have: {e}"))?;
     let own = f64::from(act.board.rate_hz);
     let mut rates = args.rates_hz.clone().unwrap_or_else(|| default_rates(own));
     anyhow::ensure!(!rates.is_empty(), "--rates-hz: give at least one rate");

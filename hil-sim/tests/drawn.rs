@@ -1,0 +1,89 @@
+//! Drawn actuators: every one obeys the physical rules, lies in the stated ranges and
+//! round-trips through its file; a file that breaks a rule is refused by `tune` with the
+//! rule named.
+
+use hil_sim::drawn::{self, RANGES};
+
+/// Seed of the drawn sample (printed by the test).
+const SEED: u64 = 0xD7A;
+/// Actuators in the sample.
+const N: usize = 200;
+
+fn within(what: &str, v: f32, r: drawn::Range) {
+    let v = f64::from(v);
+    // Three significant figures: half a unit of the third figure either side.
+    let slack = 5e-3;
+    assert!(
+        v >= r.lo * (1.0 - slack) && v <= r.hi * (1.0 + slack),
+        "{what} = {v} outside [{}, {}]",
+        r.lo,
+        r.hi
+    );
+}
+
+#[test]
+fn drawn_actuators_obey_the_rules_and_the_ranges_and_round_trip_through_their_files() {
+    println!("seed {SEED:#x}, {N} actuators");
+    let all = drawn::draw(N, SEED).unwrap();
+    let mut circuits = std::collections::BTreeMap::new();
+    let mut redrawn = 0;
+    let mut reasons = std::collections::BTreeMap::new();
+    for d in &all {
+        let a = &d.actuator;
+        let k = a.check_consistency().unwrap();
+        // The winding's margin: at least 1.1 times what the hold needs (rounding aside).
+        assert!(k.hold_ratio >= 1.09, "{}: {k:?}", d.name());
+        assert!(k.drive_ratio >= 1.0, "{}: {k:?}", d.name());
+        assert!(
+            k.flux_density_t <= ema::actuator::SATURATION_T,
+            "{}: {k:?}",
+            d.name()
+        );
+        a.settings().unwrap();
+        within("mass", a.mechanics.mass_kg, RANGES.mass_kg);
+        within("stroke", a.mechanics.stroke_m, RANGES.stroke_m);
+        within("spring", a.mechanics.spring_n_per_m, RANGES.spring_n_per_m);
+        within("supply", a.board.supply_v, RANGES.supply_v);
+        within("rate", a.board.rate_hz, RANGES.rate_hz);
+        within(
+            "rated current",
+            a.coil.rated_current_a,
+            RANGES.rated_current_a,
+        );
+        within("turns", a.coil.turns, RANGES.turns);
+        // The coil's time constants of the circuit as drawn (the controller's nominal, the
+        // centre of the surface bounds, differs on a growing surface).
+        let p = a.plant().unwrap();
+        let tau = |x: f32| p.magnetics.inductance_h(p.gap_m(x)) / a.coil.resistance_ohm;
+        within("closed L/R", tau(p.stroke_m), RANGES.coil_s);
+        assert!(
+            f64::from(tau(0.0)) >= RANGES.coil_s.lo * 0.99,
+            "{}",
+            d.name()
+        );
+        let text = d.text().unwrap();
+        let back = hil_sim::actuator::parse(&text, &d.name()).unwrap();
+        assert_eq!(&back, a, "{}", d.name());
+        *circuits.entry(d.circuit).or_insert(0) += 1;
+        redrawn += d.redrawn.values().sum::<usize>();
+        for (r, c) in &d.redrawn {
+            *reasons.entry(r.clone()).or_insert(0) += c;
+        }
+    }
+    println!("circuits {circuits:?}, {redrawn} draws refused: {reasons:?}");
+    // Every kind of circuit is drawn: one and two gaps, constant and growing, inductances
+    // (each about a sixth or a third of 200).
+    assert_eq!(circuits.len(), 5, "{circuits:?}");
+    assert!(circuits.values().all(|&c| c >= 15), "{circuits:?}");
+    // The winding follows the rest, so few draws are refused: fewer than two for each
+    // actuator kept.
+    assert!(redrawn < 2 * N, "{redrawn} refused for {N}");
+}
+
+#[test]
+fn an_actuator_is_the_same_whatever_the_number_drawn() {
+    let many = drawn::draw(12, SEED).unwrap();
+    let one = drawn::draw_one(SEED, 11).unwrap();
+    assert_eq!(many[11], one);
+    assert_ne!(many[10].actuator, one.actuator);
+}

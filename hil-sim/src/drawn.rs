@@ -200,7 +200,7 @@ impl Drawn {
 /// Draws `n` actuators with seed `seed`, each redrawn until the rules accept it.
 ///
 /// # Errors
-/// An actuator that no draw in [`ATTEMPTS`] gets through the rules (a defect of the
+/// An actuator that no draw in 1000 gets through the rules (a defect of the
 /// ranges), with the reasons counted.
 pub fn draw(n: usize, seed: u64) -> anyhow::Result<Vec<Drawn>> {
     (0..n).map(|index| draw_one(seed, index)).collect()

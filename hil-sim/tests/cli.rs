@@ -370,7 +370,14 @@ fn faults_prints_and_writes_the_table() {
 /// `tune` on the actuator `file` at 20 kHz only, 4 validation draws, files into `out`:
 /// its outcome and what it printed.
 fn tune_at_20_khz(file: &std::path::Path, out: &std::path::Path) -> (tune::Outcome, String) {
-    let args = tune::Args {
+    let mut printed = Vec::new();
+    let o = tune::run(&tune_args_at_20_khz(file, out), &mut printed).unwrap();
+    (o, String::from_utf8(printed).unwrap())
+}
+
+/// The arguments of `tune` on `file` at 20 kHz only, 4 validation draws, files into `out`.
+fn tune_args_at_20_khz(file: &std::path::Path, out: &std::path::Path) -> tune::Args {
+    tune::Args {
         actuator: file.display().to_string(),
         rates_hz: Some(vec![20e3]),
         validate: 4,
@@ -380,10 +387,7 @@ fn tune_at_20_khz(file: &std::path::Path, out: &std::path::Path) -> (tune::Outco
         output: Output {
             out: Some(out.to_path_buf()),
         },
-    };
-    let mut printed = Vec::new();
-    let o = tune::run(&args, &mut printed).unwrap();
-    (o, String::from_utf8(printed).unwrap())
+    }
 }
 
 /// Tuning a file at one rate writes its tuned file beside it, with the chosen gains in a
@@ -507,17 +511,7 @@ fn drawn_files_load_and_tune_refuses_a_file_that_breaks_a_rule_by_name() {
         .replace("rated_current_a = 2.0", "rated_current_a = 1.5");
     let file = out.join("weak-valve.toml");
     std::fs::write(&file, weak).unwrap();
-    let args = tune::Args {
-        actuator: file.display().to_string(),
-        rates_hz: Some(vec![20e3]),
-        validate: 4,
-        substeps: 1,
-        tuned: None,
-        quiet: true,
-        output: Output {
-            out: Some(out.clone()),
-        },
-    };
+    let args = tune_args_at_20_khz(&file, &out);
     let e = tune::run(&args, &mut Vec::new()).unwrap_err().to_string();
     assert!(
         e.contains("coil.rated_current_a = 1.5")

@@ -78,11 +78,7 @@ pub fn family_table() -> anyhow::Result<Table> {
             sig(f64::from(act.board.rate_hz) / 1e3, 3),
             sig(f64::from(s.natural_rad_s), 3),
             sig(f64::from(s.authority_rad_s), 3),
-            format!(
-                "{}-{}",
-                sig(f64::from(s.coil_open_s) * 1e3, 2),
-                sig(f64::from(s.coil_closed_s) * 1e3, 2)
-            ),
+            coil_ms(&s),
             sig(f64::from(tuning.alpha_per_s), 3),
             sig(f64::from(tuning.observer_rad_s), 3),
             sig(f64::from(tuning.margin), 2),
@@ -148,13 +144,18 @@ pub fn drawn_table(drawn: &[crate::drawn::Drawn]) -> anyhow::Result<Table> {
             sig(f64::from(a.board.rate_hz) / 1e3, 3),
             sig(f64::from(s.natural_rad_s), 3),
             sig(f64::from(s.authority_rad_s), 3),
-            format!(
-                "{}-{}",
-                sig(f64::from(s.coil_open_s) * 1e3, 2),
-                sig(f64::from(s.coil_closed_s) * 1e3, 2)
-            ),
+            coil_ms(&s),
             d.redrawn.values().sum::<usize>().to_string(),
         ]);
     }
     Ok(t)
+}
+
+/// The coil's time constants at the two stops, `open-closed` \[ms\].
+fn coil_ms(s: &ema::actuator::TimeScales) -> String {
+    format!(
+        "{}-{}",
+        sig(f64::from(s.coil_open_s) * 1e3, 2),
+        sig(f64::from(s.coil_closed_s) * 1e3, 2)
+    )
 }

@@ -34,7 +34,8 @@
 //!
 //! A design is an actuator a user could have only if its coil holds the armature anywhere
 //! on the stroke with a margin, its supply drives the rated current through the hot coil,
-//! and its iron is not saturated where it is held ([`Consistency`],
+//! its iron is not saturated where it is held, and its magnet pulls at every gap of the
+//! stroke on every surface the tolerance allows ([`Consistency`],
 //! [`Actuator::check_consistency`]). The rules judge a design before gains are chosen for
 //! it (the host's `tune` refuses a file that breaks one, with the rule named); the
 //! settings themselves do not check them, so that an actuator identified on a bench, which
@@ -757,10 +758,18 @@ impl Actuator {
         }
         let drive_v = self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz);
         let hot_v = (1.0 + t.resistance) * c.resistance_ohm * c.rated_current_a;
+        let physical = plant.physical_bounds();
+        let pull_ratio = WeakestPull::of(
+            &plant.magnetics,
+            &physical,
+            plant.convention.gap_range_m(m.stroke_m),
+        )
+        .map_or(1.0, |w| w.ratio_to(physical.s_lo_m2));
         Ok(Consistency {
             hold_ratio: self.current_limit_a() / hold_a,
             drive_ratio: drive_v / hot_v,
             flux_density_t,
+            pull_ratio,
         })
     }
 
@@ -778,6 +787,18 @@ impl Actuator {
                 derived,
             },
         };
+        // First: without a pull the force bound, and so the hold, means nothing.
+        if k.pull_ratio.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            let (param, value) = match self.magnetics {
+                Magnetics::Geometry {
+                    fringing_spread, ..
+                } if fringing_spread > 0.0 => {
+                    ("magnetics.geometry.fringing_spread", fringing_spread)
+                }
+                _ => ("mechanics.stroke_m", self.mechanics.stroke_m),
+            };
+            return Err(broken(param, value, RULE_PULL, k.pull_ratio));
+        }
         if k.hold_ratio.partial_cmp(&1.0) == Some(core::cmp::Ordering::Less) {
             return Err(broken(
                 "coil.rated_current_a",
@@ -861,15 +882,16 @@ impl Actuator {
 }
 
 /// What the physical-consistency rules measure: an actuator that breaks one is not one a
-/// user could have (its coil cannot hold its armature, its supply cannot drive its coil, or
-/// its iron saturates where the model says it does not), and [`Actuator::settings`]
-/// refuses it with the rule's text.
+/// user could have (its coil cannot hold its armature, its supply cannot drive its coil,
+/// its iron saturates where the model says it does not, or its magnet would push), and
+/// [`Actuator::check_consistency`] refuses it with the rule's text.
 ///
 /// | rule | measure | limit |
 /// |---|---|---|
 /// | the law's current limit holds the armature anywhere on the stroke, on every plant of the uncertainty set | [`Consistency::hold_ratio`] | at least 1 |
 /// | the supply drives the rated current through the hot coil | [`Consistency::drive_ratio`] | at least 1 |
 /// | the iron is not saturated where the armature is held | [`Consistency::flux_density_t`] | at most [`SATURATION_T`] |
+/// | the magnet pulls at every gap of the stroke, on every surface the tolerance allows | [`Consistency::pull_ratio`] | above 0 |
 ///
 /// Each limit is what the physics needs, not a design margin: a coil that holds its
 /// stroke with a tenth to spare is a better design than one with 1 %, but both are
@@ -890,6 +912,15 @@ pub struct Consistency {
     /// The largest flux density in an airgap where the nominal magnet holds the armature
     /// against the stiffest spring, over the stroke \[T\].
     pub flux_density_t: f32,
+    /// The weakest reluctance force coefficient (`-dL/dg`) of a surface that grows inside
+    /// the tolerance, over the frozen one of the smallest surface, at the worst gap of the
+    /// stroke \[-\]. A surface that grows with the gap as fast as the gap itself
+    /// (`g S'(g) / S(g)` reaching 1) makes the inductance rise as the gap opens: the
+    /// magnet would push the armature open, which no actuator does, and the force bound of
+    /// the controller cannot exist. It happens when the fringe is wide against the pole
+    /// (a pole side below the gap times the fringing spread), where the fringing model
+    /// itself no longer holds.
+    pub pull_ratio: f32,
 }
 
 /// Largest [`Consistency::flux_density_t`]: soft magnetic steels of solenoid valves and
@@ -905,6 +936,9 @@ const RULE_HOLD: &str = "the law's current limit over the current that holds the
                          magnet (rule: at least 1)";
 const RULE_DRIVE: &str = "the bridge's largest voltage from the supply over the hot coil's \
                           drop at the rated current (rule: at least 1)";
+const RULE_PULL: &str = "the weakest pull of a surface growing within the tolerance over the \
+                         frozen pull of the smallest surface, at the worst gap (rule: above \
+                         0, or the magnet pushes the armature open)";
 const RULE_SATURATION: &str = "the flux density in the airgap where the magnet holds the \
                                armature [T] (rule: at most 1.6, where soft steels saturate)";
 
@@ -999,53 +1033,18 @@ const GROWTH_GRID: u16 = 16;
 fn energy_consistent_share(
     magnetics: &model::Magnetics,
     physical: &Bounds,
-    (g_lo, g_hi): (f32, f32),
+    gaps_m: (f32, f32),
 ) -> f32 {
-    let n2 = magnetics.turns_sq();
-    let gaps = magnetics.gaps;
-    let rho0 = magnetics.rho0_per_h;
-    // Frozen force coefficient of a constant surface `s` at gap `g`.
-    let frozen = |s: f32, g: f32| {
-        let rho_x = gaps / (MU0_H_PER_M * s);
-        let rho = rho_x * g + rho0;
-        n2 * rho_x / (rho * rho)
-    };
-    let span = g_hi - g_lo;
-    if span.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+    let Some(weakest) = WeakestPull::of(magnetics, physical, gaps_m) else {
         return 1.0;
-    }
-    let (s_lo, s_hi) = (physical.s_lo_m2, physical.s_hi_m2);
-    let (r_lo, r_hi) = (math::sqrt(s_lo), math::sqrt(s_hi));
-    let steps = f32::from(GROWTH_GRID);
-    // The weakest energy-consistent force over the grown surfaces, at each gap of the grid.
-    let mut floor = [f32::INFINITY; GROWTH_GRID as usize + 1];
-    for i in 0..=GROWTH_GRID {
-        // sqrt of the surface at the smallest gap, then at the largest.
-        let r1 = r_lo + (r_hi - r_lo) * f32::from(i) / steps;
-        for j in i..=GROWTH_GRID {
-            let r2 = r_lo + (r_hi - r_lo) * f32::from(j) / steps;
-            let k = (r2 - r1) / span;
-            for (q, least) in (0..=GROWTH_GRID).zip(floor.iter_mut()) {
-                let g = g_lo + span * f32::from(q) / steps;
-                let side = r1 + k * (g - g_lo);
-                // -dL/dg with S(g) = side^2: the frozen value times 1 - 2 g k / side.
-                let energy = frozen(side * side, g) * (1.0 - 2.0 * g * k / side);
-                *least = math::min(*least, energy);
-            }
-        }
-    }
+    };
     // The largest share whose frozen force stays below that floor at every gap: the
     // frozen force grows with the surface, so bisect.
-    let below = |r: f32| {
-        (0..=GROWTH_GRID).zip(floor.iter()).all(|(q, least)| {
-            let g = g_lo + span * f32::from(q) / steps;
-            frozen(r * s_lo, g) <= *least
-        })
-    };
+    let below = |r: f32| weakest.all(|g, least| weakest.frozen(r * physical.s_lo_m2, g) <= least);
     if below(1.0) {
         return 1.0;
     }
-    let (mut lo, mut hi) = (0.1_f32, 1.0_f32);
+    let (mut lo, mut hi) = (SHARE_FLOOR, 1.0_f32);
     if !below(lo) {
         return lo;
     }
@@ -1058,6 +1057,93 @@ fn energy_consistent_share(
         }
     }
     lo
+}
+
+/// The share [`energy_consistent_share`] returns for a design whose weakest pull it cannot
+/// bound from below: one that breaks the pull rule ([`Consistency::pull_ratio`]), which
+/// `check_consistency` refuses; the settings of such a file still derive, with the force
+/// bound this far below the physical one \[-\].
+const SHARE_FLOOR: f32 = 0.1;
+
+/// The weakest energy-consistent force coefficient over the surfaces that grow inside the
+/// physical bounds (see [`energy_consistent_share`]), on a grid of the stroke's airgaps.
+struct WeakestPull {
+    n2: f32,
+    gaps: f32,
+    rho0: f32,
+    g_lo: f32,
+    span: f32,
+    floor: [f32; GROWTH_GRID as usize + 1],
+}
+
+impl WeakestPull {
+    /// `None` for a stroke without length.
+    fn of(
+        magnetics: &model::Magnetics,
+        physical: &Bounds,
+        (g_lo, g_hi): (f32, f32),
+    ) -> Option<Self> {
+        let span = g_hi - g_lo;
+        if span.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            return None;
+        }
+        let mut w = Self {
+            n2: magnetics.turns_sq(),
+            gaps: magnetics.gaps,
+            rho0: magnetics.rho0_per_h,
+            g_lo,
+            span,
+            floor: [f32::INFINITY; GROWTH_GRID as usize + 1],
+        };
+        let (r_lo, r_hi) = (math::sqrt(physical.s_lo_m2), math::sqrt(physical.s_hi_m2));
+        let steps = f32::from(GROWTH_GRID);
+        let mut floor = w.floor;
+        for i in 0..=GROWTH_GRID {
+            // sqrt of the surface at the smallest gap, then at the largest.
+            let r1 = r_lo + (r_hi - r_lo) * f32::from(i) / steps;
+            for j in i..=GROWTH_GRID {
+                let r2 = r_lo + (r_hi - r_lo) * f32::from(j) / steps;
+                let k = (r2 - r1) / span;
+                for (q, least) in (0..=GROWTH_GRID).zip(floor.iter_mut()) {
+                    let g = w.gap(q);
+                    let side = r1 + k * (g - g_lo);
+                    // -dL/dg with S(g) = side^2: the frozen value times 1 - 2 g k / side.
+                    let energy = w.frozen(side * side, g) * (1.0 - 2.0 * g * k / side);
+                    *least = math::min(*least, energy);
+                }
+            }
+        }
+        w.floor = floor;
+        Some(w)
+    }
+
+    /// Gap `q` of the grid \[m\].
+    fn gap(&self, q: u16) -> f32 {
+        self.g_lo + self.span * f32::from(q) / f32::from(GROWTH_GRID)
+    }
+
+    /// The frozen force coefficient of a constant surface `s` at gap `g` \[H/m\].
+    fn frozen(&self, s: f32, g: f32) -> f32 {
+        let rho_x = self.gaps / (MU0_H_PER_M * s);
+        let rho = rho_x * g + self.rho0;
+        self.n2 * rho_x / (rho * rho)
+    }
+
+    /// Whether `f(gap, weakest force coefficient there)` holds at every gap of the grid.
+    fn all(&self, f: impl Fn(f32, f32) -> bool) -> bool {
+        (0..=GROWTH_GRID)
+            .zip(self.floor.iter())
+            .all(|(q, least)| f(self.gap(q), *least))
+    }
+
+    /// The smallest ratio over the grid of the weakest force to the frozen force of the
+    /// constant surface `s_lo` \[-\].
+    fn ratio_to(&self, s_lo: f32) -> f32 {
+        (0..=GROWTH_GRID)
+            .zip(self.floor.iter())
+            .map(|(q, least)| least / self.frozen(s_lo, self.gap(q)))
+            .fold(f32::INFINITY, math::min)
+    }
 }
 
 #[cfg(test)]
@@ -1108,6 +1194,37 @@ mod tests {
         assert_eq!(refused_by(&a), Some(("board.supply_v", RULE_DRIVE)));
         a.board.supply_v = 6.5;
         assert_ne!(refused_by(&a).map(|r| r.1), Some(RULE_DRIVE));
+    }
+
+    #[test]
+    fn a_surface_that_grows_as_fast_as_the_gap_is_refused_by_the_pull_rule() {
+        let spread = |k: f32| {
+            let mut a = Actuator::PRODUCT;
+            if let Magnetics::Geometry {
+                ref mut fringing_spread,
+                ..
+            } = a.magnetics
+            {
+                *fringing_spread = k;
+            }
+            a
+        };
+        // The product's 7 mm pole across gaps of 0.5-4.5 mm: a fringe growing half a gap
+        // per side keeps the weakest pull at 0.46 of the frozen one; the paper's `(a + g)(b
+        // + g)` lets a surface inside the 20 % tolerance grow faster than the gap at the
+        // open stop, where its magnet would push.
+        let k = spread(0.5).check_consistency().unwrap();
+        assert!(k.pull_ratio > 0.4 && k.pull_ratio < 0.5, "{k:?}");
+        let k = spread(1.0).consistency().unwrap();
+        assert!(k.pull_ratio < -0.1, "{k:?}");
+        // (Its settings do not derive either: at the share's floor the weakest magnet
+        // cannot lift the armature.)
+        let e = spread(1.0).check_consistency().unwrap_err();
+        assert_eq!(e.param, "magnetics.geometry.fringing_spread");
+        assert!(matches!(e.reason, Reason::Derived { what, .. } if what == RULE_PULL));
+        // A constant surface pulls everywhere.
+        let k = Actuator::PRODUCT.consistency().unwrap();
+        assert!(k.pull_ratio > 0.8 && k.pull_ratio < 0.9, "{k:?}");
     }
 
     #[test]

@@ -30,7 +30,8 @@
 //! Physical consistency is a rule, not a draw: a drawn actuator is kept only when it meets
 //! the rules of [`ema::actuator::Consistency`] (its current holds it anywhere on the stroke
 //! with a margin, its supply drives its rated current through the hot coil, its iron is
-//! not saturated where it is held) and [`Actuator::settings`] derives every setting;
+//! not saturated where it is held, its magnet pulls at every gap on every surface the
+//! tolerance allows) and [`Actuator::settings`] derives every setting;
 //! otherwise the generator draws again, and counts why ([`Drawn::redrawn`]). A
 //! hand-written file that breaks a rule is refused by `tune` with the rule named.
 //!

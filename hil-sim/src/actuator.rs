@@ -66,10 +66,9 @@ macro_rules! entry {
 /// 0.5 to 10 mm of stroke, 0.3 to 20 A, 12 to 48 V and 10 to 50 kHz.
 ///
 /// Not every actuator can be tuned: `hil-sim/actuators/micro-valve-stiff.toml` (5 g on a
-/// 5000 N/m spring) is refused by `tune`, which names the target it misses: its coil
-/// cannot slew the force as fast as its mechanics move (the search's outer-loop rates stop
-/// at the coil's slew rate, below the mechanical frequency), and the corner plants
-/// overshoot or the converter noise through the gains exceeds the ripple target.
+/// 5000 N/m spring) is refused by `tune`, which names the target it misses and where: at
+/// the best gains a corner plant overshoots, its disturbance estimate lagging the model
+/// error at the end of a move.
 pub const FAMILY: [Entry; 7] = [
     entry!("product"),
     entry!("valve"),

@@ -6,12 +6,12 @@
 //!    `1 - 0.7 L_lo / L`, never negative over the bounds; `integral` is fixed
 //!    ([`ema::law::practical::REACH`], [`ema::law::practical::INTEGRAL`]).
 //! 2. **The search space comes from the actuator** ([`Space::for_actuator`]): `alpha`
-//!    (`alpha1 = alpha2`, error poles `-alpha +- j`) on a geometric grid around its
-//!    mechanical frequency ([`ema::actuator::TimeScales::mechanical_rad_s`]), capped by
-//!    what the coil can follow (the slew frequency of the current at the rated current
-//!    through the largest inductance) and by the interrupt rate; the observer bandwidth as
-//!    a multiple of `alpha`; the shaping margin. No bound is a number tuned on one
-//!    actuator.
+//!    (`alpha1 = alpha2`, error poles `-alpha +- j`) on a geometric grid from a tenth to
+//!    ten times its mechanical frequency
+//!    ([`ema::actuator::TimeScales::mechanical_rad_s`]), below a tenth of the interrupt
+//!    rate; the observer bandwidth as a multiple of `alpha`; the shaping margin. What the
+//!    coil can follow is found by the simulation, not assumed. No bound is a number tuned
+//!    on one actuator.
 //! 3. **Theorem 1** as the practical law has it ([`crate::lyapunov::Problem::practical`]):
 //!    the error system must be quadratically stable over every force gain the loop can
 //!    meet; a candidate that fails it is not simulated.
@@ -121,11 +121,22 @@ pub const VALIDATION_SEED: u64 = 1;
 /// the worst corner is never better than the nominal plant \[-\].
 pub const SCREEN: f64 = 1.0;
 
-/// The `alpha` grid: the top value and this many below it, a factor `sqrt 2` apart (the
-/// top one 16 times the bottom one).
-pub const ALPHA_STEPS: u32 = 9;
-/// The top of the `alpha` grid per unit of the mechanical frequency, before the caps.
-pub const ALPHA_TOP_PER_W: f64 = 4.0;
+/// Points of the `alpha` grid, evenly spaced on a log scale from [`ALPHA_LOW_PER_W`] to
+/// [`ALPHA_HIGH_PER_W`] times the mechanical frequency (a factor `100^(1/14)`, about 1.39,
+/// apart).
+pub const ALPHA_STEPS: u32 = 15;
+/// The bottom of the `alpha` grid per unit of the mechanical frequency: a loop ten times
+/// slower than the actuator's own dynamics leaves the disturbance estimate to do all the
+/// work \[-\].
+pub const ALPHA_LOW_PER_W: f64 = 0.1;
+/// The top of the `alpha` grid per unit of the mechanical frequency, before the sampling
+/// cap: a loop ten times faster than the actuator's dynamics only amplifies the sensors'
+/// noise \[-\].
+pub const ALPHA_HIGH_PER_W: f64 = 10.0;
+/// Largest `alpha` per unit of the lowest interrupt rate in rad/s: the error poles
+/// `-alpha +- j` of a loop sampled with one period of delay keep their damping only well
+/// below the sampling rate, about a tenth of it \[-\].
+pub const ALPHA_PER_RATE: f64 = 0.1;
 /// Observer bandwidths, per unit of `alpha`.
 pub const OBSERVER_PER_ALPHA: [f64; 6] = [0.7, 1.0, 1.5, 2.5, 4.0, 6.0];
 /// Shaping margins.
@@ -133,22 +144,26 @@ pub const MARGINS: [f64; 9] = [0.01, 0.025, 0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 0.85
 
 impl Space {
     /// The search space of an actuator (see the module documentation): `alpha` from
-    /// [`ALPHA_TOP_PER_W`] times its mechanical frequency, or the coil's slew frequency, or a
-    /// tenth of the lowest interrupt rate `rate_min_hz` in rad/s, whichever is lowest, down
-    /// [`ALPHA_STEPS`] steps of `sqrt 2`; the observer at [`OBSERVER_PER_ALPHA`] times
-    /// `alpha`, below a quarter of the Nyquist rate; the [`MARGINS`].
+    /// [`ALPHA_LOW_PER_W`] to [`ALPHA_HIGH_PER_W`] times its mechanical frequency in
+    /// [`ALPHA_STEPS`] points, those above [`ALPHA_PER_RATE`] of the lowest interrupt rate
+    /// `rate_min_hz` in rad/s left out (the lowest point is kept); the observer at
+    /// [`OBSERVER_PER_ALPHA`] times `alpha`, below a quarter of the Nyquist rate; the
+    /// [`MARGINS`]. What the coil can follow is not assumed: a gain that asks for more
+    /// current or voltage than it gives misses its targets in the simulation.
     ///
     /// # Errors
     /// An actuator whose settings do not derive, by name.
     pub fn for_actuator(act: &Actuator, rate_min_hz: f64) -> Result<Self, Error> {
         let ts = act.time_scales().map_err(Error::Actuator)?;
         let w = f64::from(ts.mechanical_rad_s());
-        let top = (ALPHA_TOP_PER_W * w)
-            .min(slew_rad_s(act))
-            .min(0.1 * 2.0 * std::f64::consts::PI * rate_min_hz);
+        let cap = ALPHA_PER_RATE * 2.0 * std::f64::consts::PI * rate_min_hz;
+        let ratio = ALPHA_HIGH_PER_W / ALPHA_LOW_PER_W;
+        let last = f64::from(ALPHA_STEPS - 1);
         let alpha: Vec<f64> = (0..ALPHA_STEPS)
-            .rev()
-            .map(|k| round3(top * std::f64::consts::SQRT_2.powi(-i32::try_from(k).unwrap_or(0))))
+            .map(|k| round3(ALPHA_LOW_PER_W * w * ratio.powf(f64::from(k) / last)))
+            .enumerate()
+            .filter(|&(k, a)| k == 0 || a <= cap)
+            .map(|(_, a)| a)
             .collect();
         Ok(Self {
             alpha,
@@ -196,23 +211,6 @@ pub fn observer_limit_rad_s(rate_hz: f64) -> f64 {
 /// Three significant digits: tuned files carry round numbers.
 fn round3(v: f64) -> f64 {
     format!("{v:.2e}").parse().unwrap_or(v)
-}
-
-/// How fast the coil can move its current across the rating through its largest
-/// inductance (at the closed stop), with what the supply leaves above the resistive drop:
-/// `(V - R I) / (L_closed I)` \[rad/s\]. An outer loop much faster than this asks for
-/// currents the coil cannot follow.
-#[must_use]
-pub fn slew_rad_s(act: &Actuator) -> f64 {
-    let Ok(ts) = act.time_scales() else {
-        return 0.0;
-    };
-    let c = &act.coil;
-    let headroom =
-        f64::from(act.board.supply_v) - f64::from(c.resistance_ohm) * f64::from(c.rated_current_a);
-    // L_closed / R is the closed-stop time constant: L_closed = tau R.
-    let l_closed = f64::from(ts.coil_closed_s) * f64::from(c.resistance_ohm);
-    headroom.max(0.0) / (l_closed * f64::from(c.rated_current_a))
 }
 
 /// Theorem 1 for one candidate.

@@ -414,9 +414,9 @@ fn tune_writes_a_tuned_file_that_loads() {
     );
 }
 
-/// An actuator the law cannot be tuned for (5 g on a 5000 N/m spring: its coil cannot
-/// slew the force as fast as its mechanics move) is refused: no tuned file, and the
-/// diagnosis names the target missed, the rate and by how much.
+/// An actuator the law cannot be tuned for (5 g on a 5000 N/m spring: a corner plant
+/// overshoots at the best gains) is refused: no tuned file, and the diagnosis names the
+/// target missed, the rate and by how much.
 #[test]
 fn tune_refuses_an_actuator_it_cannot_tune_and_names_the_target() {
     let out = dir("tune-refused");

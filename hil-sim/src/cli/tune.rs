@@ -109,7 +109,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     writeln!(
         out,
         "tuning `{name}` at {} kHz: mechanical frequency {} rad/s (natural {}, authority {}), \
-         coil slew {} rad/s, coil L/R {}-{} ms",
+         coil L/R {}-{} ms",
         rates
             .iter()
             .map(|r| sig(r / 1e3, 3))
@@ -118,7 +118,6 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         sig(f64::from(scales.mechanical_rad_s()), 3),
         sig(f64::from(scales.natural_rad_s), 3),
         sig(f64::from(scales.authority_rad_s), 3),
-        sig(tune::slew_rad_s(&act), 3),
         sig(f64::from(scales.coil_open_s) * 1e3, 3),
         sig(f64::from(scales.coil_closed_s) * 1e3, 3),
     )?;

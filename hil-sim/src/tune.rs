@@ -6,8 +6,8 @@
 //!    `1 - 0.7 L_lo / L`, never negative over the bounds; `integral` is fixed
 //!    ([`ema::law::practical::REACH`], [`ema::law::practical::INTEGRAL`]).
 //! 2. **The search space comes from the actuator** ([`Space::for_actuator`]): `alpha`
-//!    (`alpha1 = alpha2`, error poles `-alpha +- j`) on a geometric grid from a tenth to
-//!    ten times its mechanical frequency
+//!    (`alpha1 = alpha2`, error poles `-alpha +- j`) on a half-octave grid through the
+//!    default gain, from a tenth to ten times its mechanical frequency
 //!    ([`ema::actuator::TimeScales::mechanical_rad_s`]), below a tenth of the interrupt
 //!    rate; the observer bandwidth as a multiple of `alpha`; the shaping margin. What the
 //!    coil can follow is found by the simulation, not assumed. No bound is a number tuned
@@ -121,10 +121,11 @@ pub const VALIDATION_SEED: u64 = 1;
 /// the worst corner is never better than the nominal plant \[-\].
 pub const SCREEN: f64 = 1.0;
 
-/// Points of the `alpha` grid, evenly spaced on a log scale from [`ALPHA_LOW_PER_W`] to
-/// [`ALPHA_HIGH_PER_W`] times the mechanical frequency (a factor `100^(1/14)`, about 1.39,
-/// apart).
-pub const ALPHA_STEPS: u32 = 15;
+/// Ratio of neighbouring points of the `alpha` grid: half an octave. The grid runs through
+/// the default gain ([`ema::actuator::DEFAULT_ALPHA_PER_W`] times the mechanical
+/// frequency) in these steps both ways until it covers [`ALPHA_LOW_PER_W`] to
+/// [`ALPHA_HIGH_PER_W`], so an untuned file's own gain is always a candidate (15 points).
+pub const ALPHA_STEP: f64 = std::f64::consts::SQRT_2;
 /// The bottom of the `alpha` grid per unit of the mechanical frequency: a loop ten times
 /// slower than the actuator's own dynamics leaves the disturbance estimate to do all the
 /// work \[-\].
@@ -145,7 +146,7 @@ pub const MARGINS: [f64; 9] = [0.01, 0.025, 0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 0.85
 impl Space {
     /// The search space of an actuator (see the module documentation): `alpha` from
     /// [`ALPHA_LOW_PER_W`] to [`ALPHA_HIGH_PER_W`] times its mechanical frequency in
-    /// [`ALPHA_STEPS`] points, those above [`ALPHA_PER_RATE`] of the lowest interrupt rate
+    /// [`ALPHA_STEP`]s through the default gain, those above [`ALPHA_PER_RATE`] of the lowest interrupt rate
     /// `rate_min_hz` in rad/s left out (the lowest point is kept); the observer at
     /// [`OBSERVER_PER_ALPHA`] times `alpha`, below a quarter of the Nyquist rate; the
     /// [`MARGINS`]. What the coil can follow is not assumed: a gain that asks for more
@@ -157,10 +158,15 @@ impl Space {
         let ts = act.time_scales().map_err(Error::Actuator)?;
         let w = f64::from(ts.mechanical_rad_s());
         let cap = ALPHA_PER_RATE * 2.0 * std::f64::consts::PI * rate_min_hz;
-        let ratio = ALPHA_HIGH_PER_W / ALPHA_LOW_PER_W;
-        let last = f64::from(ALPHA_STEPS - 1);
-        let alpha: Vec<f64> = (0..ALPHA_STEPS)
-            .map(|k| round3(ALPHA_LOW_PER_W * w * ratio.powf(f64::from(k) / last)))
+        let default = f64::from(ema::actuator::DEFAULT_ALPHA_PER_W);
+        let steps = |per_w: f64| (per_w / default).ln() / ALPHA_STEP.ln();
+        #[allow(clippy::cast_possible_truncation)]
+        let (low, high) = (
+            steps(ALPHA_LOW_PER_W).floor() as i32,
+            steps(ALPHA_HIGH_PER_W).ceil() as i32,
+        );
+        let alpha: Vec<f64> = (low..=high)
+            .map(|k| round3(default * w * ALPHA_STEP.powi(k)))
             .enumerate()
             .filter(|&(k, a)| k == 0 || a <= cap)
             .map(|(_, a)| a)
@@ -900,10 +906,18 @@ mod tests {
             valve.alpha[0] > 1.5 * product.alpha[0],
             "{valve:?} {product:?}"
         );
-        // The product's tuned alpha lies inside its own grid.
+        // The product's tuned alpha lies inside its own grid, which spans a tenth to ten
+        // times the mechanical frequency in half-octave steps through the default gain.
         let tuned = f64::from(Actuator::PRODUCT.tuning.unwrap().alpha_per_s);
         let (lo, hi) = (product.alpha[0], *product.alpha.last().unwrap());
         assert!(lo < tuned && tuned < hi, "{product:?}");
+        let w = f64::from(Actuator::PRODUCT.time_scales().unwrap().mechanical_rad_s());
+        assert!(lo <= 0.1 * w && hi >= 10.0 * w, "{product:?}");
+        assert_eq!(product.alpha.len(), 15, "{product:?}");
+        assert!(product.alpha.contains(&round3(2.0 * w)), "{product:?}");
+        for pair in product.alpha.windows(2) {
+            assert!((pair[1] / pair[0] - ALPHA_STEP).abs() < 0.01, "{pair:?}");
+        }
     }
 
     #[test]

@@ -60,7 +60,7 @@
 //! | residual noise, jump, open | [`NOISE_ALLOWANCE_CODES`], [`JUMP_ALLOWANCES`] and [`OPEN_ALLOWANCES`] allowances in current codes: the current channel's own resolution and noise ([`residual_detector`]) |
 //! | residual window, confirmation | half the detection deadline ([`DEADLINE_S`]) in interrupt periods; [`RESIDUAL_CONFIRM_TICKS`] ticks, from the converter's noise |
 //! | tracking error | 1/8 of the stroke, for a quarter of the settling target |
-//! | a move's settling target | the paper's 0.2 s, or 1.5 times the fastest smooth move the limits allow ([`crate::shaping::Config::minimum_time_s`]), whichever is longer |
+//! | a move's settling target | 1.5 times the fastest move the limits allow, the coil's current rise included, at least the paper's 0.2 s ([`crate::shaping::Config::settling_target_s`]) |
 //!
 //! ```
 //! use ema::actuator::Actuator;
@@ -301,10 +301,6 @@ pub const FORCE_SCALED_SHARE: f32 = 0.1;
 /// Ripple allowance: the targets allow 2 % of the rated current peak to peak at the
 /// samples, so the law keeps its desired current that far below the rating \[-\].
 pub const RIPPLE_SHARE: f32 = 0.02;
-/// The paper's settling claim, the target for any actuator fast enough to meet it \[s\].
-pub const SETTLING_CLAIM_S: f32 = 0.2;
-/// Settling target of a slower actuator, per unit of its minimum-time move \[-\].
-pub const SETTLING_PER_MINIMUM_MOVE: f32 = 1.5;
 
 /// Offset and gain error a position sensor may carry, each as a share of its span \[-\]:
 /// the calibration leaves room for both at either end of the stroke, so that such a sensor
@@ -676,6 +672,30 @@ impl Actuator {
         (1.0 - RIPPLE_SHARE) * self.coil.rated_current_a
     }
 
+    /// Time the coil's current takes from zero to `current_a` at full drive through its
+    /// closed-stop inductance \[s\]: `tau ln(U / (U - R i))` with `tau = L / R` (the
+    /// first-order rise toward `U / R`), on the nominal coil, as the settling target
+    /// describes the nominal actuator.
+    ///
+    /// # Errors
+    /// A drive that cannot reach `current_a` even through the nominal coil, as the drive
+    /// rule ([`Consistency::drive_ratio`]) names it.
+    fn current_rise_s(&self, scales: &TimeScales, current_a: f32) -> Result<f32, Error> {
+        let drop_v = self.coil.resistance_ohm * current_a;
+        let drive_v = self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz);
+        if (drive_v - drop_v).partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            return Err(Error {
+                param: "board.supply_v",
+                value: self.board.supply_v,
+                reason: Reason::Derived {
+                    what: RULE_DRIVE,
+                    derived: drive_v / drop_v,
+                },
+            });
+        }
+        Ok(scales.coil_closed_s * math::ln(drive_v / (drive_v - drop_v)))
+    }
+
     /// Every controller setting, derived (see the module documentation for each rule).
     /// The result is validated by building it once.
     ///
@@ -696,6 +716,7 @@ impl Actuator {
             current_max_a,
             margin: tuning.margin,
             duration_min_s: 2.6 / tuning.alpha_per_s,
+            current_rise_s: self.current_rise_s(&scales, current_max_a)?,
         };
         let settings = Settings {
             rate_hz: b.rate_hz,
@@ -860,10 +881,7 @@ impl Actuator {
                 },
             });
         }
-        let settling_s = math::max(
-            SETTLING_CLAIM_S,
-            SETTLING_PER_MINIMUM_MOVE * planner.minimum_time_s(0.0, stroke),
-        );
+        let settling_s = planner.settling_target_s(0.0, stroke);
         Ok(Monitors {
             thermal: Some(Thermal {
                 continuous_a: c.rated_current_a,
@@ -1150,10 +1168,11 @@ impl WeakestPull {
 mod tests {
     use super::*;
 
-    /// The rule's text of a refusal, or `None` when the actuator is accepted.
+    /// The rule's text of a refusal, or `None` when the actuator is accepted. Settings
+    /// derive for any actuator but one whose drive cannot reach the current limit through
+    /// the nominal coil, which they refuse by the drive rule too.
     fn refused_by(a: &Actuator) -> Option<(&'static str, &'static str)> {
-        a.settings().unwrap();
-        match a.check_consistency() {
+        let rule = |r: Result<_, Error>| match r {
             Ok(_) => None,
             Err(Error {
                 param,
@@ -1161,7 +1180,30 @@ mod tests {
                 ..
             }) => Some((param, what)),
             Err(e) => panic!("refused for another reason: {e}"),
-        }
+        };
+        let settings = rule(a.settings().map(|_| ()));
+        assert!(settings.is_none() || settings == Some(("board.supply_v", RULE_DRIVE)));
+        rule(a.check_consistency().map(|_| ()))
+    }
+
+    /// The settling target waits for the coil: its current rises from zero to the limit
+    /// at full drive through the closed-stop inductance, `tau ln(U / (U - R i))`.
+    #[test]
+    fn the_current_rise_is_the_first_order_rise_of_the_hot_coil_at_full_drive() {
+        let a = Actuator::PRODUCT;
+        let rise = a.settings().unwrap().shaping.unwrap().current_rise_s;
+        let tau = a.time_scales().unwrap().coil_closed_s;
+        let u = a.board.supply_v * crate::bridge::max_modulation(a.board.rate_hz);
+        let drop = a.coil.resistance_ohm * a.current_limit_a();
+        let expect = tau * libm::logf(u / (u - drop));
+        assert!((rise - expect).abs() < 1e-9, "{rise} vs {expect}");
+        // The product's drive is 4.6 times the coil's drop: the rise is a quarter of tau.
+        assert!(rise > 0.2 * tau && rise < 0.3 * tau, "{rise} {tau}");
+        // A lower supply, nearer the drop, waits longer; one below it is refused.
+        let mut weak = a;
+        weak.board.supply_v = 8.0;
+        let slower = weak.settings().unwrap().shaping.unwrap().current_rise_s;
+        assert!(slower > 2.0 * rise, "{slower} {rise}");
     }
 
     #[test]

@@ -23,8 +23,9 @@
 
 use std::path::Path;
 
-use ema::actuator::{Actuator, SETTLING_CLAIM_S, SETTLING_PER_MINIMUM_MOVE};
+use ema::actuator::Actuator;
 use ema::shaping;
+use ema::shaping::SETTLING_CLAIM_S;
 
 use crate::catalog::LoadError;
 use crate::hal::{Adc, Supply};
@@ -183,26 +184,23 @@ pub const STEADY_WINDOW_S: f64 = 0.05;
 
 /// The minimum-time move between two positions that the settings' limits allow, as the
 /// reference shaping computes it (magnet at the current limit on the weakest plant, the
-/// spring alone the other way) \[s\]; `None` without reference shaping.
+/// spring alone the other way, the coil's current rise included) \[s\]; `None` without
+/// reference shaping.
 #[must_use]
 #[allow(clippy::cast_possible_truncation)]
 pub fn minimum_move_s(settings: &ema::control::Settings, from_m: f64, to_m: f64) -> Option<f64> {
-    let planner = settings
-        .shaping?
-        .build(&settings.plant, 1.0 / settings.rate_hz)
-        .ok()?;
     Some(f64::from(
-        planner.minimum_time_s(from_m as f32, to_m as f32),
+        planner(settings)?.minimum_time_s(from_m as f32, to_m as f32),
     ))
 }
 
-/// The settling target of a move: the paper's 0.2 s, or 1.5 times the minimum-time move
-/// for an actuator whose limits cannot move it that fast \[s\].
+/// The settling target of a move ([`ema::shaping::Config::settling_target_s`]), or the
+/// paper's 0.2 s for settings without reference shaping (the paper's reproduction) \[s\].
 #[must_use]
+#[allow(clippy::cast_possible_truncation)]
 pub fn settling_target_s(settings: &ema::control::Settings, from_m: f64, to_m: f64) -> f64 {
-    let claim = f64::from(SETTLING_CLAIM_S);
-    minimum_move_s(settings, from_m, to_m).map_or(claim, |t| {
-        claim.max(f64::from(SETTLING_PER_MINIMUM_MOVE) * t)
+    planner(settings).map_or(f64::from(SETTLING_CLAIM_S), |p| {
+        f64::from(p.settling_target_s(from_m as f32, to_m as f32))
     })
 }
 

@@ -80,6 +80,8 @@ pub struct Outcome {
     pub worst: Table,
     /// The product's targets: draws missing each.
     pub targets: Table,
+    /// The settling target of each step segment \[s\].
+    pub settling_targets_s: Vec<f64>,
     /// Draws that miss at least one target.
     pub failing: usize,
     /// With `--sensor-errors`: the sensor's share apart.
@@ -713,6 +715,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         draws,
         worst,
         targets,
+        settling_targets_s: t.settling_s,
         failing,
         sensor,
         classes,

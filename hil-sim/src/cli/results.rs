@@ -1,7 +1,8 @@
 //! `hil-sim results [--check]`: the result tables a reader of the repository needs, run and
 //! written to `hil-sim/RESULTS.md` so that no figure is copied by hand: the paper's claims
 //! beside the measured values, the three laws compared, the family of actuators with the
-//! settings derived from each, the Monte Carlo of every member at its own rate and at
+//! settings derived from each, each member's tuned file re-derived by `tune` (a file it
+//! would no longer choose stops the run), the Monte Carlo of every member at its own rate and at
 //! 20 kHz, the fault table of every member, the Monte Carlo with converter errors drawn
 //! per plant (the sensor's share of the steady error apart), and the draws beyond the
 //! controller's tolerances sorted into pass, named fault and silent failure.
@@ -179,6 +180,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
          (`<name>.tuned.toml`).\n"
     )?;
     writeln!(w, "{}", super::actuators::family_table()?.to_text())?;
+    rederived(args, w, out)?;
 
     writeln!(
         w,
@@ -187,8 +189,8 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
          {n} plants drawn from each member's uncertainty set (seed {seed}), the member's \
          evaluation sequence (rest, then 1/8, 7/8, 3/8 and 3/4 of the stroke), judged \
          against the targets derived from the member's time scales and ratings. Each row \
-         gives the worst draw of each metric with its limit in brackets, and how many \
-         draws miss any target.\n",
+         gives the worst draw of each metric with its limit in brackets, the settling \
+         target of each move of the sequence, and how many draws miss any target.\n",
         n = args.n,
         seed = args.seed
     )?;
@@ -197,6 +199,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         "ISR [kHz]",
         "draws missing a target",
         "settling / its target",
+        "settling targets [s]",
         "overshoot [%]",
         "|steady error| [%]",
         "ripple p-p [A]",
@@ -247,6 +250,11 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                 sig(rate_hz / 1e3, 3),
                 format!("{} of {}", o.failing, o.draws.len()),
                 cell("settling / its target"),
+                o.settling_targets_s
+                    .iter()
+                    .map(|v| sig(*v, 3))
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 cell("overshoot [%]"),
                 cell("|steady error| [%]"),
                 cell("ripple p-p [A]"),
@@ -306,6 +314,81 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     sensor_errors(args, w, out)?;
     beyond(args, w, out)?;
     Ok(Outcome { text: md })
+}
+
+/// The section that re-derives every member's tuned file with `tune` as a user runs it.
+///
+/// # Errors
+/// A member whose tuned file is not what `tune` chooses now (or for which it chooses
+/// nothing), naming the command that re-derives it: the family's figures are only worth
+/// what the gains behind them are, so no result is written from a stale file.
+fn rederived(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
+    writeln!(
+        w,
+        "## The tuned files re-derived (`hil-sim tune <name>`)\n\n\
+         `tune` run again on each member's file as a user runs it (its own validation \
+         plants, the default rates); a tuned file in the repository that it would no longer \
+         choose stops this run.\n"
+    )?;
+    let mut t = Table::new([
+        "member",
+        "tuned file: alpha / observer / margin",
+        "tune's choice",
+        "worst metric / its target",
+        "same",
+    ]);
+    let gains = |g: &ema::actuator::Tuning| {
+        format!(
+            "{} / {} / {}",
+            sig(f64::from(g.alpha_per_s), 3),
+            sig(f64::from(g.observer_rad_s), 3),
+            sig(f64::from(g.margin), 2)
+        )
+    };
+    let mut stale = Vec::new();
+    for e in &actuator::FAMILY {
+        writeln!(out, "tune {} ...", e.name)?;
+        let (_, act) = actuator::load(e.name)?;
+        let file = act
+            .tuning
+            .ok_or_else(|| anyhow::anyhow!("`{}` has no tuned file", e.name))?;
+        let dir = scratch(args, &format!("{}-tune", e.name));
+        let o = super::tune::run(
+            &super::tune::Args {
+                actuator: e.name.into(),
+                rates_hz: None,
+                validate: super::tune::DEFAULT_VALIDATE,
+                substeps: 1,
+                tuned: Some(dir.dir("tune").join(format!("{}.tuned.toml", e.name))),
+                quiet: true,
+                output: dir,
+            },
+            &mut Vec::new(),
+        )?;
+        let chosen = o.report.tuned.as_ref().and_then(|a| a.tuning);
+        let same = chosen == Some(file);
+        if !same {
+            stale.push(e.name);
+        }
+        t.push([
+            e.name.to_owned(),
+            gains(&file),
+            chosen.as_ref().map_or_else(|| "none".into(), gains),
+            o.report
+                .chosen
+                .as_ref()
+                .map_or_else(|| "-".into(), |c| sig(c.score, 3)),
+            if same { "yes" } else { "no FAIL" }.into(),
+        ]);
+    }
+    writeln!(w, "{}", t.to_text())?;
+    anyhow::ensure!(
+        stale.is_empty(),
+        "tune no longer chooses the tuned file of {}: re-derive each with `cargo run -p \
+         hil-sim --release -- tune <name> --tuned hil-sim/actuators/<name>.tuned.toml`",
+        stale.join(", ")
+    );
+    Ok(())
 }
 
 /// Spread factors beyond the controller's tolerances the family is drawn at.

@@ -24,7 +24,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub rates_hz: Option<Vec<f64>>,
     /// Plants drawn to validate a candidate, per rate.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = DEFAULT_VALIDATE)]
     pub validate: usize,
     /// RK4 substeps per period for the search.
     #[arg(long, default_value_t = 1)]
@@ -40,6 +40,9 @@ pub struct Args {
     #[command(flatten)]
     pub output: super::Output,
 }
+
+/// Plants drawn to validate a candidate, per rate, unless told otherwise.
+pub const DEFAULT_VALIDATE: usize = 100;
 
 /// Control rates the board offers between 10 and 50 kHz (each divides TIM1's 84 MHz
 /// half-clock, so a centre-aligned period is a whole number of counts) \[Hz\].

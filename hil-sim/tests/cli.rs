@@ -405,6 +405,20 @@ fn tune_writes_a_tuned_file_that_loads() {
         printed.contains("a common Lyapunov matrix exists"),
         "{printed}"
     );
+    // The ball's radius is put against the stroke, the scale a user judges it by.
+    let radius = o
+        .report
+        .chosen
+        .as_ref()
+        .unwrap()
+        .theorem
+        .radius_optimised_m
+        .unwrap();
+    let strokes = radius / 1.5e-3;
+    assert!(
+        printed.contains(&format!("{} strokes)", hil_sim::report::sig(strokes, 3))),
+        "{strokes} {printed}"
+    );
     let (name, back) = hil_sim::actuator::load(path.to_str().unwrap()).unwrap();
     assert_eq!(name, "valve");
     assert_eq!(Some(back), o.report.tuned);

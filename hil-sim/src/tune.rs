@@ -868,26 +868,17 @@ mod tests {
         assert_eq!(corner_name(0), "the nominal plant");
         for (k, q) in c.iter().enumerate().skip(1) {
             let name = corner_name(k);
-            assert_eq!(
-                name.contains("mass high"),
-                q.mass_kg > nominal.mass_kg,
-                "{name}"
-            );
-            assert_eq!(
-                name.contains("spring high"),
-                q.spring_n_per_m > nominal.spring_n_per_m,
-                "{name}"
-            );
-            assert_eq!(
-                name.contains("friction high"),
-                q.friction_n_s_per_m > nominal.friction_n_s_per_m,
-                "{name}"
-            );
-            assert_eq!(
-                name.contains("resistance high"),
-                q.resistance_ohm > nominal.resistance_ohm,
-                "{name}"
-            );
+            for (word, high) in [
+                ("mass high", q.mass_kg > nominal.mass_kg),
+                ("spring high", q.spring_n_per_m > nominal.spring_n_per_m),
+                (
+                    "friction high",
+                    q.friction_n_s_per_m > nominal.friction_n_s_per_m,
+                ),
+                ("resistance high", q.resistance_ohm > nominal.resistance_ohm),
+            ] {
+                assert_eq!(name.contains(word), high, "{name}: {word}");
+            }
             assert_eq!(
                 name.contains("growing"),
                 q.force == ForceModel::EnergyConsistent,

@@ -528,14 +528,12 @@ impl Actuator {
                 let rho_x = n2 * (1.0 / open_h - 1.0 / closed_h) / (g_open - g_closed);
                 let rho0 = n2 / closed_h - rho_x * g_closed;
                 if rho0.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
-                    return Err(Error {
-                        param: "magnetics.inductance.closed_h",
-                        value: closed_h,
-                        reason: Reason::Derived {
-                            what: "iron reluctance rho_0 [1/H]",
-                            derived: rho0,
-                        },
-                    });
+                    return Err(refused(
+                        "magnetics.inductance.closed_h",
+                        closed_h,
+                        "iron reluctance rho_0 [1/H]",
+                        rho0,
+                    ));
                 }
                 model::Magnetics {
                     turns: self.coil.turns,
@@ -684,14 +682,12 @@ impl Actuator {
         let drop_v = self.coil.resistance_ohm * current_a;
         let drive_v = self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz);
         if (drive_v - drop_v).partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
-            return Err(Error {
-                param: "board.supply_v",
-                value: self.board.supply_v,
-                reason: Reason::Derived {
-                    what: RULE_DRIVE,
-                    derived: drive_v / drop_v,
-                },
-            });
+            return Err(refused(
+                "board.supply_v",
+                self.board.supply_v,
+                RULE_DRIVE,
+                drive_v / drop_v,
+            ));
         }
         Ok(scales.coil_closed_s * math::ln(drive_v / (drive_v - drop_v)))
     }
@@ -800,14 +796,6 @@ impl Actuator {
     /// The field the rule bounds, with the rule's text as the reason.
     pub fn check_consistency(&self) -> Result<Consistency, Error> {
         let k = self.consistency()?;
-        let broken = |param, value, rule, derived| Error {
-            param,
-            value,
-            reason: Reason::Derived {
-                what: rule,
-                derived,
-            },
-        };
         // First: without a pull the force bound, and so the hold, means nothing.
         if k.pull_ratio.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
             let (param, value) = match self.magnetics {
@@ -818,10 +806,10 @@ impl Actuator {
                 }
                 _ => ("mechanics.stroke_m", self.mechanics.stroke_m),
             };
-            return Err(broken(param, value, RULE_PULL, k.pull_ratio));
+            return Err(refused(param, value, RULE_PULL, k.pull_ratio));
         }
         if k.hold_ratio.partial_cmp(&1.0) == Some(core::cmp::Ordering::Less) {
-            return Err(broken(
+            return Err(refused(
                 "coil.rated_current_a",
                 self.coil.rated_current_a,
                 RULE_HOLD,
@@ -829,7 +817,7 @@ impl Actuator {
             ));
         }
         if k.drive_ratio.partial_cmp(&1.0) == Some(core::cmp::Ordering::Less) {
-            return Err(broken(
+            return Err(refused(
                 "board.supply_v",
                 self.board.supply_v,
                 RULE_DRIVE,
@@ -837,7 +825,7 @@ impl Actuator {
             ));
         }
         if k.flux_density_t.partial_cmp(&SATURATION_T) == Some(core::cmp::Ordering::Greater) {
-            return Err(broken(
+            return Err(refused(
                 "coil.turns",
                 self.coil.turns,
                 RULE_SATURATION,
@@ -846,7 +834,7 @@ impl Actuator {
         }
         if !(k.hold_ratio.is_finite() && k.drive_ratio.is_finite() && k.flux_density_t.is_finite())
         {
-            return Err(broken(
+            return Err(refused(
                 "coil.rated_current_a",
                 self.coil.rated_current_a,
                 RULE_HOLD,
@@ -871,15 +859,13 @@ impl Actuator {
         // open stop against its spring, or no move up can be planned.
         let (lift_n, _) = planner.force_budget_n(0.0, stroke);
         if lift_n.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
-            return Err(Error {
-                param: "coil.rated_current_a",
-                value: c.rated_current_a,
-                reason: Reason::Derived {
-                    what: "the magnet's pull at the current limit less the spring, at the open \
-                           stop on the weakest plant the surfaces allow [N]",
-                    derived: lift_n,
-                },
-            });
+            return Err(refused(
+                "coil.rated_current_a",
+                c.rated_current_a,
+                "the magnet's pull at the current limit less the spring, at the open stop on \
+                 the weakest plant the surfaces allow [N]",
+                lift_n,
+            ));
         }
         let settling_s = planner.settling_target_s(0.0, stroke);
         Ok(Monitors {
@@ -896,6 +882,17 @@ impl Actuator {
                 time_s: 0.25 * settling_s,
             }),
         })
+    }
+}
+
+/// The refusal of a file whose field `param` (at `value`) gives a quantity out of its
+/// bounds: `what` says which quantity (or which physical rule it breaks), `derived` its
+/// value.
+const fn refused(param: &'static str, value: f32, what: &'static str, derived: f32) -> Error {
+    Error {
+        param,
+        value,
+        reason: Reason::Derived { what, derived },
     }
 }
 

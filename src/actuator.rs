@@ -670,6 +670,12 @@ impl Actuator {
         (1.0 - RIPPLE_SHARE) * self.coil.rated_current_a
     }
 
+    /// The largest voltage the bridge puts across the coil from the supply at the board's
+    /// rate \[V\].
+    fn drive_v(&self) -> f32 {
+        self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz)
+    }
+
     /// Time the coil's current takes from zero to `current_a` at full drive through its
     /// closed-stop inductance \[s\]: `tau ln(U / (U - R i))` with `tau = L / R` (the
     /// first-order rise toward `U / R`), on the nominal coil, as the settling target
@@ -680,7 +686,7 @@ impl Actuator {
     /// rule ([`Consistency::drive_ratio`]) names it.
     fn current_rise_s(&self, scales: &TimeScales, current_a: f32) -> Result<f32, Error> {
         let drop_v = self.coil.resistance_ohm * current_a;
-        let drive_v = self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz);
+        let drive_v = self.drive_v();
         if (drive_v - drop_v).partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
             return Err(refused(
                 "board.supply_v",
@@ -773,7 +779,7 @@ impl Actuator {
                 flux_wb / plant.magnetics.fringing.surface_m2(g),
             );
         }
-        let drive_v = self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz);
+        let drive_v = self.drive_v();
         let hot_v = (1.0 + t.resistance) * c.resistance_ohm * c.rated_current_a;
         let physical = plant.physical_bounds();
         let pull_ratio = WeakestPull::of(

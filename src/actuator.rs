@@ -1192,7 +1192,7 @@ mod tests {
     /// The settling target waits for the coil: its current rises from zero to the limit
     /// at full drive through the closed-stop inductance, `tau ln(U / (U - R i))`.
     #[test]
-    fn the_current_rise_is_the_first_order_rise_of_the_hot_coil_at_full_drive() {
+    fn the_current_rise_is_the_first_order_rise_of_the_nominal_coil_at_full_drive() {
         let a = Actuator::PRODUCT;
         let rise = a.settings().unwrap().shaping.unwrap().current_rise_s;
         let tau = a.time_scales().unwrap().coil_closed_s;

@@ -128,30 +128,8 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         "target",
         "over it",
     ]);
-    // One row: the median, the 99th percentile and the maximum of `v`, and how many are
-    // over the target (none: a quantity without one).
-    let row = |t: &mut Table, what: &str, mut v: Vec<f64>, target: Option<f64>| {
-        let over = target.map_or(String::new(), |target| {
-            // NaN (a value that could not be read) counts as over.
-            v.iter()
-                .filter(|x| x.is_nan() || **x > target)
-                .count()
-                .to_string()
-        });
-        v.sort_by(f64::total_cmp);
-        let at = |q: f64| {
-            v.get(((v.len() as f64 - 1.0) * q).round() as usize)
-                .copied()
-        };
-        let [m, p, x] = [at(0.5), at(0.99), v.last().copied()].map(|x| x.unwrap_or(f64::NAN));
-        t.push([
-            what.to_owned(),
-            sig(m, 3),
-            sig(p, 3),
-            sig(x, 3),
-            target.map_or(String::new(), |t| sig(t, 2)),
-            over,
-        ]);
+    let row = |t: &mut Table, what: &str, v: Vec<f64>, target: Option<f64>| {
+        t.push(distribution_row(what, v, target));
     };
     for (i, (what, target)) in QUANTITIES.iter().enumerate() {
         let scale = if i < 4 { 100.0 } else { 1.0 };
@@ -194,11 +172,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     .into_iter()
     .enumerate()
     {
-        let v = mechanics
-            .iter()
-            .map(|e| 100.0 * e[i].abs())
-            .filter(|e| !e.is_nan())
-            .collect();
+        let v = mechanics.iter().map(|e| 100.0 * e[i].abs()).collect();
         row(&mut t, what, v, target);
     }
     let unfitted = mechanics.iter().filter(|e| e[2].is_nan()).count();
@@ -287,4 +261,54 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         named(&holds_faulted),
     )?;
     Ok(())
+}
+
+/// One row of the commission table: the median, the 99th percentile and the maximum of
+/// the values of `v` that could be read, the target, and how many are over it (empty: a
+/// quantity without one), where a NaN (a value that could not be read: a probe that read
+/// nothing, a move not fitted) counts as over.
+#[allow(
+    clippy::cast_precision_loss,
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss
+)]
+fn distribution_row(what: &str, v: Vec<f64>, target: Option<f64>) -> [String; 6] {
+    let over = target.map_or(String::new(), |target| {
+        v.iter()
+            .filter(|x| x.is_nan() || **x > target)
+            .count()
+            .to_string()
+    });
+    let mut v: Vec<f64> = v.into_iter().filter(|x| !x.is_nan()).collect();
+    v.sort_by(f64::total_cmp);
+    let at = |q: f64| {
+        v.get(((v.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+    };
+    let [m, p, x] = [at(0.5), at(0.99), v.last().copied()].map(|x| x.unwrap_or(f64::NAN));
+    [
+        what.to_owned(),
+        sig(m, 3),
+        sig(p, 3),
+        sig(x, 3),
+        target.map_or(String::new(), |t| sig(t, 2)),
+        over,
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distribution_row;
+
+    /// A value that could not be read counts as over its target, and stays out of the
+    /// quantiles.
+    #[test]
+    fn a_value_not_read_counts_as_over_its_target() {
+        let r = distribution_row("q", vec![1.0, f64::NAN, 3.0, 2.0], Some(2.5));
+        assert_eq!(r[1], "2");
+        assert_eq!(r[3], "3");
+        assert_eq!(r[5], "2");
+        let r = distribution_row("q", vec![1.0, f64::NAN], None);
+        assert_eq!(r[5], "");
+    }
 }

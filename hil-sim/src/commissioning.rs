@@ -1415,7 +1415,9 @@ pub fn closed_loop(
         CLOSED_LOOP_VALIDATION,
     )?;
     let Some(t) = tuned.tuned else {
-        return Ok(ClosedLoop::Untuned(tuned.diagnosis.unwrap_or_default()));
+        return Ok(ClosedLoop::Untuned(
+            tuned.refusal.map(|r| r.to_string()).unwrap_or_default(),
+        ));
     };
     let mut sc = crate::actuator::scenario("commissioned", &t)?;
     sc.plant = TruePlant::Given(plant.clone());

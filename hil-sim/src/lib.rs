@@ -45,6 +45,9 @@
 //! | [`accuracy`] | how many RK4 substeps per ISR period a scenario needs, measured |
 //! | [`actuator`] | actuator files: the family in the repository, loading, tuned files |
 //! | [`drawn`] | drawn actuators: plausible actuators for judging the rules out of sample |
+//! | [`outofsample`] | drawn actuators tuned, then judged on plants and faults |
+//! | [`seeds`] | which seeds choose and which judge |
+//! | [`commissioning`] | the identification fits of the board's commissioning routine |
 //! | [`catalog`] | scenario files: the embedded defaults, loading by name or from a file |
 //! | [`compare`] | the comparison of the laws over ISR rates and supplies |
 //! | [`faults`] | fault injection: the fault the supervisor must name, and how fast |
@@ -74,9 +77,11 @@ pub mod hal;
 pub mod lyapunov;
 pub mod metrics;
 pub mod montecarlo;
+pub mod outofsample;
 pub mod plant;
 pub mod report;
 pub mod scenario;
+pub mod seeds;
 pub mod sim;
 pub mod targets;
 pub mod tune;

@@ -31,7 +31,7 @@
 //!    corners and validated the same way. An actuator whose best grid point misses a
 //!    target by a few per cent is often met between the points.
 //!
-//! When no candidate passes, [`Report::diagnosis`] names the target that stays out of
+//! When no candidate passes, [`Report::refusal`] names the target that stays out of
 //! reach on the best candidate, at which rate, and by how much.
 
 use rayon::prelude::*;
@@ -113,9 +113,6 @@ pub struct Space {
     /// Shaping margins \[-\].
     pub margin: Vec<f64>,
 }
-
-/// Seed of the validation draws.
-pub const VALIDATION_SEED: u64 = 1;
 
 /// Candidates whose score on the nominal plant is above this are not run on the corners:
 /// the worst corner is never better than the nominal plant \[-\].
@@ -397,8 +394,9 @@ pub struct Report {
     /// Worst metrics of the validation Monte Carlo with the tuned actuator, per rate, with
     /// the targets they are judged by.
     pub validation: Vec<(Worst, Targets)>,
-    /// Why nothing passed: the unreachable target, where and by how much.
-    pub diagnosis: Option<String>,
+    /// Why nothing passed: the unreachable target, where and by how much (`None` when a
+    /// candidate was chosen).
+    pub refusal: Option<Refusal>,
 }
 
 /// The scenario of `act` with `c` at `rate_hz` and `substeps`, on `plant`.
@@ -466,6 +464,13 @@ pub fn tune(
     act.check_consistency().map_err(Error::Actuator)?;
     let plants = corners(&base.plant);
     let candidates = space.candidates(f64::from(act.board.rate_hz));
+    if candidates.is_empty() {
+        return Err(Error::param(
+            "space",
+            0.0,
+            "the search space holds no candidate",
+        ));
+    }
 
     // Theorem 1 and the screening run, in parallel over the candidates.
     let screen = |cs: &[Candidate]| -> Result<Vec<Evaluation>, Error> {
@@ -538,10 +543,11 @@ pub fn tune(
         tuning: Some(c.candidate.tuning()),
         ..*act
     });
-    let diagnosis = if chosen.is_some() {
+    let refusal = if chosen.is_some() {
         None
     } else {
-        Some(diagnose(&evaluations))
+        // Every candidate was at least screened, so there is a best.
+        refusal(&evaluations)
     };
     evaluations.sort_by(|a, b| {
         (a.score, a.screen)
@@ -555,7 +561,7 @@ pub fn tune(
         chosen,
         tuned,
         validation,
-        diagnosis,
+        refusal,
     })
 }
 
@@ -667,7 +673,12 @@ impl Search<'_> {
             for &rate in self.rates_hz {
                 let sc = condition(self.name, self.act, &e.candidate, rate, self.substeps)?;
                 let t = Targets::for_scenario(&sc);
-                let draws = montecarlo_with(&sc, self.validation_draws, VALIDATION_SEED, false)?;
+                let draws = montecarlo_with(
+                    &sc,
+                    self.validation_draws,
+                    crate::seeds::TUNE_VALIDATION,
+                    false,
+                )?;
                 let w = Worst::of_draws(&draws, &t);
                 let misses = w.misses(&t);
                 checked.push((w, t));
@@ -723,89 +734,174 @@ pub fn corner_name(k: usize) -> String {
     )
 }
 
-/// What keeps the best candidate from passing, in words: the lowest complete score, or
-/// (when no candidate got through the corners) the lowest screening score.
-fn diagnose(evaluations: &[Evaluation]) -> String {
+/// Where the best candidate stopped when nothing passed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Stage {
+    /// Theorem 1 fails for every candidate.
+    Theorem,
+    /// No candidate passed the nominal plant (none ran on the corners).
+    Nominal,
+    /// The best missed a target on a corner plant.
+    Corners,
+    /// The best met every corner plant but missed on the validation draws.
+    Validation,
+}
+
+/// Why [`tune`] chose nothing: the best candidate, the target it misses, where and by how
+/// much.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Refusal {
+    /// Where the best stopped.
+    pub stage: Stage,
+    /// The best candidate.
+    pub candidate: Candidate,
+    /// The target it misses (`settling`, `overshoot`, `steady error`, `ripple`, `current`,
+    /// `voltage`, `fault`).
+    pub what: String,
+    /// The rate where \[Hz\].
+    pub rate_hz: f64,
+    /// Its `worst / target` there (infinite for a fault).
+    pub by: f64,
+    /// The corner plant of [`corners`] where it is worst.
+    pub corner: Option<usize>,
+    /// The detector that fired, for a fault.
+    pub detector: Option<String>,
+}
+
+impl Refusal {
+    /// The refusal in a few words, for a table: what, by how much, where.
+    #[must_use]
+    pub fn short(&self) -> String {
+        let at = format!("{} kHz", crate::report::sig(self.rate_hz / 1e3, 3));
+        let corner = self
+            .corner
+            .map_or_else(String::new, |k| format!(", corner {k}"));
+        match (self.stage, &self.detector) {
+            (Stage::Theorem, _) => "Theorem 1 fails".into(),
+            (Stage::Validation, _) => format!("{} on drawn plants at {at}", self.what),
+            (_, Some(d)) if self.what == "fault" => format!("`{d}` fires at {at}{corner}"),
+            _ => format!(
+                "{} x{} at {at}{corner}",
+                self.what,
+                crate::report::sig(self.by, 3)
+            ),
+        }
+    }
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let c = &self.candidate;
+        let (what, rate, score) = (&self.what, self.rate_hz, self.by);
+        match self.stage {
+            Stage::Theorem => {
+                return write!(
+                    f,
+                    "Theorem 1 fails for every candidate (best: alpha {} 1/s): the force gains \
+                     the uncertainty allows are too far apart for a common Lyapunov matrix",
+                    c.alpha
+                )
+            }
+            Stage::Validation => {
+                return write!(
+                    f,
+                    "no candidate meets every target on the drawn plants; the best (alpha {} \
+                     1/s, observer {} rad/s, margin {}) meets every target on every corner \
+                     plant (worst at {score:.3} of its target) but misses `{what}` at {} kHz",
+                    c.alpha,
+                    c.observer_rad_s,
+                    c.margin,
+                    rate / 1e3,
+                )
+            }
+            Stage::Nominal | Stage::Corners => {}
+        }
+        let why = match what.as_str() {
+            "settling" => {
+                "the moves the current limit allows on the weakest plant take longer than \
+                 the target, or the loop is too slow to finish them"
+            }
+            "overshoot" => {
+                "the disturbance estimate lags the model error of the corner plants at the \
+                 end of a move"
+            }
+            "steady error" => "the loop does not remove the model error within the steady window",
+            "ripple" => {
+                "converter noise through the observer and the gains moves the current more \
+                 than 2 % of the rating"
+            }
+            "current" => "the moves need more than the rated current on some corner plant",
+            "voltage" => "the coil sees more than the supply and the freewheeling diodes' drop",
+            "fault" => "a fault detector fires",
+            _ => "",
+        };
+        let plant = self
+            .corner
+            .map_or_else(String::new, |k| format!(" on {}", corner_name(k)));
+        let why = match &self.detector {
+            Some(d) if what == "fault" => format!("the `{d}` detector fires{plant}"),
+            _ if why.is_empty() => plant.trim_start().to_owned(),
+            _ => format!("{why} ({})", plant.trim_start()),
+        };
+        write!(
+            f,
+            "no candidate meets every target {}; the best (alpha {} 1/s, observer {} rad/s, \
+             margin {}) misses `{what}` at {} kHz by a factor {:.3}: {why}",
+            if self.stage == Stage::Corners {
+                "on every corner plant at every rate"
+            } else {
+                "even on the nominal plant"
+            },
+            c.alpha,
+            c.observer_rad_s,
+            c.margin,
+            rate / 1e3,
+            score
+        )
+    }
+}
+
+/// The best of the evaluations when none passed, and what it missed (`None`: no
+/// evaluation, which [`tune`] refuses before it searches).
+fn refusal(evaluations: &[Evaluation]) -> Option<Refusal> {
     // Those run on the corners (their score is where they stopped, at their first miss),
     // else the screening.
     let on_corners = evaluations
         .iter()
         .filter(|e| !e.worst.is_empty())
         .min_by(|a, b| a.score.total_cmp(&b.score));
-    let complete = on_corners;
-    let best = on_corners.map(|e| (e, e.score)).or_else(|| {
-        evaluations
-            .iter()
-            .min_by(|a, b| a.screen.total_cmp(&b.screen))
-            .map(|e| (e, e.screen))
-    });
-    let Some((best, score)) = best else {
-        return "the search space is empty".into();
+    let (best, by, stage) = on_corners
+        .map(|e| (e, e.score, Stage::Corners))
+        .or_else(|| {
+            evaluations
+                .iter()
+                .min_by(|a, b| a.screen.total_cmp(&b.screen))
+                .map(|e| (e, e.screen, Stage::Nominal))
+        })?;
+    let stage = if !best.theorem.holds() {
+        Stage::Theorem
+    } else if best.validated == Some(false) {
+        Stage::Validation
+    } else {
+        stage
     };
-    let c = &best.candidate;
-    if !best.theorem.holds() {
-        return format!(
-            "Theorem 1 fails for every candidate (best: alpha {} 1/s): the force gains the \
-             uncertainty allows are too far apart for a common Lyapunov matrix",
-            c.alpha
-        );
-    }
-    let (what, rate) = best
+    let (what, rate_hz) = best
         .limiting
         .clone()
         .unwrap_or_else(|| ("none".into(), f64::NAN));
-    if best.validated == Some(false) {
-        return format!(
-            "no candidate meets every target on the drawn plants; the best (alpha {} 1/s, \
-             observer {} rad/s, margin {}) meets every target on every corner plant (worst \
-             at {score:.3} of its target) but misses `{what}` at {} kHz",
-            c.alpha,
-            c.observer_rad_s,
-            c.margin,
-            rate / 1e3,
-        );
-    }
-    let why = match what.as_str() {
-        "settling" => {
-            "the moves the current limit allows on the weakest plant take longer than \
-                       the target, or the loop is too slow to finish them"
-        }
-        "overshoot" => {
-            "the disturbance estimate lags the model error of the corner plants at \
-                        the end of a move"
-        }
-        "steady error" => "the loop does not remove the model error within the steady window",
-        "ripple" => {
-            "converter noise through the observer and the gains moves the current more \
-                     than 2 % of the rating"
-        }
-        "current" => "the moves need more than the rated current on some corner plant",
-        "voltage" => "the coil sees more than the supply and the freewheeling diodes' drop",
-        "fault" => "a fault detector fires",
-        _ => "",
-    };
-    let plant = best
-        .corner
-        .map_or_else(String::new, |k| format!(" on {}", corner_name(k)));
-    let why = match &best.detector {
-        Some(d) if what == "fault" => format!("the `{d}` detector fires{plant}"),
-        _ if why.is_empty() => plant.trim_start().to_owned(),
-        _ => format!("{why} ({})", plant.trim_start()),
-    };
-    format!(
-        "no candidate meets every target {}; the best (alpha {} 1/s, observer {} rad/s, \
-         margin {}) misses `{what}` at {} kHz by a factor {:.3}: {why}",
-        if complete.is_some() {
-            "on every corner plant at every rate"
-        } else {
-            "even on the nominal plant"
-        },
-        c.alpha,
-        c.observer_rad_s,
-        c.margin,
-        rate / 1e3,
-        score
-    )
+    // The validation's limiting metric is `<what> on drawn plants`.
+    let what = what
+        .strip_suffix(" on drawn plants")
+        .map_or(what.clone(), str::to_owned);
+    Some(Refusal {
+        stage,
+        candidate: best.candidate,
+        what,
+        rate_hz,
+        by,
+        corner: best.corner,
+        detector: best.detector.clone(),
+    })
 }
 
 #[cfg(test)]

@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use hil_sim::cli::{
-    self, compare, faults, golden, montecarlo, paper, run, scenarios, tune, Cli, Command, Output,
+    self, compare, drawn, faults, golden, montecarlo, paper, run, scenarios, tune, Cli, Command,
+    Output,
 };
 use hil_sim::report::decimated::COLUMNS;
 
@@ -440,12 +441,72 @@ fn tune_refuses_an_actuator_it_cannot_tune_and_names_the_target() {
     let (o, printed) = tune_at_20_khz(&file, &out);
     assert_eq!(o.tuned, None, "{printed}");
     assert!(!out.join("micro-valve-stiff.tuned.toml").exists());
-    let d = o.report.diagnosis.unwrap_or_else(|| panic!("{printed}"));
+    let r = o.report.refusal.clone().unwrap_or_else(|| panic!("{printed}"));
+    let d = r.to_string();
     assert!(
         d.contains("misses `") && d.contains(" kHz by a factor"),
         "{d}"
     );
     assert!(printed.contains(&d), "{printed}");
+    // The short form a table carries: the target missed, by how much (above 1), at a
+    // rate the search ran.
+    assert!(r.by > 1.0 && r.by.is_finite(), "{r:?}");
+    assert!(o.report.rates_hz.contains(&r.rate_hz), "{r:?}");
+    let short = r.short();
+    assert!(
+        short.starts_with(&format!("{} x", r.what))
+            && short.contains(&format!(" at {} kHz", r.rate_hz / 1e3)),
+        "{short}"
+    );
+}
+
+/// `drawn` tunes each drawn actuator and judges the tuned ones on the plants and fault
+/// cases asked for; its counts are the verdicts'. The first two actuators of the
+/// development seed are ones `tune` chooses gains for.
+#[test]
+fn drawn_tunes_and_judges_each_actuator_and_counts_what_passed() {
+    let out = dir("drawn");
+    let args = drawn::Args {
+        n: 2,
+        seed: hil_sim::seeds::DRAWN_DEVELOPMENT,
+        plants: 4,
+        plant_seed: hil_sim::seeds::RESULTS,
+        quiet: true,
+        output: Output {
+            out: Some(out.clone()),
+        },
+    };
+    let mut printed = Vec::new();
+    let o = drawn::run(&args, &mut printed).unwrap();
+    let printed = String::from_utf8(printed).unwrap();
+    assert_eq!(o.verdicts.len(), 2, "{printed}");
+    assert_eq!(o.table.rows.len(), 2);
+    for v in &o.verdicts {
+        assert!(v.tune.is_ok(), "{printed}");
+        let mc = v.montecarlo.as_ref().unwrap();
+        assert_eq!(mc.draws, 4);
+        let f = v.faults.as_ref().unwrap();
+        assert_eq!(f.cases, 12, "{printed}");
+        assert_eq!(v.pass(), mc.pass() && f.failed.is_empty());
+    }
+    let pass = o.verdicts.iter().filter(|v| v.pass()).count();
+    assert!(
+        o.summary.contains("chose gains for 2 of 2")
+            && o.summary.contains(&format!("Pass overall: {pass} of 2")),
+        "{}",
+        o.summary
+    );
+    assert!(out.join("verdicts.csv").exists() && out.join("verdicts.md").exists());
+    // Nothing is judged on no actuator: refused by name.
+    let e = drawn::run(
+        &drawn::Args {
+            n: 0,
+            ..args.clone()
+        },
+        &mut Vec::new(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("--n = 0"), "{e}");
 }
 
 /// `golden` refuses a folder that does not exist, by name.

@@ -75,7 +75,7 @@ pub fn table(cases: &[Case]) -> Table {
 }
 
 /// Column names of the random-injection table.
-pub const RANDOM_HEADER: [&str; 13] = [
+pub const RANDOM_HEADER: [&str; 14] = [
     "fault injected",
     "expected",
     "n",
@@ -89,11 +89,12 @@ pub const RANDOM_HEADER: [&str; 13] = [
     "latched before",
     "not coasting",
     "peak current [A] (trip)",
+    "verdict",
 ];
 
 /// One case's row of the random-injection table.
 #[must_use]
-pub fn random_row(s: &Spread) -> [String; 13] {
+pub fn random_row(s: &Spread) -> [String; 14] {
     let us = |v: Option<f64>| v.map_or_else(|| "-".into(), |s| sig(s * 1e6, 3));
     #[allow(clippy::cast_precision_loss)]
     let share = 100.0 * s.within_deadline as f64 / s.n.max(1) as f64;
@@ -124,6 +125,11 @@ pub fn random_row(s: &Spread) -> [String; 13] {
         s.before.to_string(),
         s.not_coasting.to_string(),
         format!("{} ({})", sig(s.peak_current_a, 4), sig(s.trip_a, 4)),
+        if s.pass() {
+            "pass".into()
+        } else {
+            format!("FAIL ({})", s.misses().join(", "))
+        },
     ]
 }
 

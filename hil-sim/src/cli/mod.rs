@@ -20,6 +20,7 @@
 //! | `compare` | the three laws at 10, 20, 50 kHz and 24, 48, 150 V: table, CSV, figure |
 //! | `tune [actuator]` | designs the practical law's gains for an actuator, writes its tuned file |
 //! | `faults [actuator]` | the fault-injection cases: fault named, detection time, peak current |
+//! | `drawn` | drawn actuators tuned and judged out of sample: tune, Monte Carlo, fault cases |
 //! | `golden` | records the golden traces the Cortex-M4F replays (`tests/golden/`) |
 //! | `results [--check]` | runs every result table and writes (or checks) `hil-sim/RESULTS.md` |
 
@@ -34,6 +35,7 @@ use clap::{Parser, Subcommand};
 pub mod actuators;
 pub mod commission;
 pub mod compare;
+pub mod drawn;
 pub mod faults;
 pub mod golden;
 pub mod montecarlo;
@@ -78,6 +80,9 @@ pub enum Command {
     Tune(tune::Args),
     /// Runs the fault-injection cases: the fault named, detection time, peak current.
     Faults(faults::Args),
+    /// Draws actuators nobody tuned anything on, tunes each and judges it on drawn plants
+    /// and the fault cases: the out-of-sample verdict.
+    Drawn(drawn::Args),
     /// The board's commissioning routine against plants drawn wider than an actuator's
     /// file: the identification errors' distribution, its duration and peak current.
     Commission(commission::Args),
@@ -155,6 +160,7 @@ pub fn dispatch(cli: Cli, out: &mut dyn Write) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Faults(a) => faults::run(&a, out).map(drop),
+        Command::Drawn(a) => drawn::run(&a, out).map(drop),
         Command::Commission(a) => commission::run(&a, out),
         Command::Golden(a) => golden::run(&a, out).map(drop),
         Command::Results(a) => results::run(&a, out).map(drop),

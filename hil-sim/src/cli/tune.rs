@@ -274,7 +274,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         std::fs::write(&path, text)?;
         files.push(path.clone());
         tuned_path = Some(path);
-    } else if let Some(d) = &report.diagnosis {
+    } else if let Some(d) = &report.refusal {
         writeln!(out, "\n{d}")?;
     }
     super::list_files(out, &files)?;

@@ -43,7 +43,7 @@ pub use ema::protocol::BAUD;
 
 /// Host tool for a board on a bench (or the virtual board).
 #[derive(Debug, Parser)]
-#[command(name = "bench", version, about, long_about = None)]
+#[command(name = "bench", version, long_about = None)]
 pub struct Cli {
     /// Serial port of the board (or the virtual board's pseudo-terminal).
     #[arg(long, global = true, env = "EMA_PORT", value_name = "PATH")]
@@ -1876,6 +1876,18 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `bench --help` says it is the bench tool, not the simulator (whose description
+    /// the package carries).
+    #[test]
+    fn the_help_names_the_bench_tool() {
+        use clap::CommandFactory;
+        let about = Cli::command().get_about().map(ToString::to_string);
+        assert_eq!(
+            about.as_deref(),
+            Some("Host tool for a board on a bench (or the virtual board)")
+        );
+    }
 
     /// A commissioning without the holds measures two inductances; a board whose file
     /// gives a pole geometry gets them as its sides and iron: the board's circuit then

@@ -441,7 +441,11 @@ fn tune_refuses_an_actuator_it_cannot_tune_and_names_the_target() {
     let (o, printed) = tune_at_20_khz(&file, &out);
     assert_eq!(o.tuned, None, "{printed}");
     assert!(!out.join("micro-valve-stiff.tuned.toml").exists());
-    let r = o.report.refusal.clone().unwrap_or_else(|| panic!("{printed}"));
+    let r = o
+        .report
+        .refusal
+        .clone()
+        .unwrap_or_else(|| panic!("{printed}"));
     let d = r.to_string();
     assert!(
         d.contains("misses `") && d.contains(" kHz by a factor"),

@@ -87,7 +87,7 @@ pub struct Reference {
 pub fn reference_substeps(rate_hz: f64) -> u32 {
     let n = (1.0 / (rate_hz * REFERENCE_STEP_S)).round();
     // Bounded to [1, 1e6] before the cast.
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let n = if n.is_finite() {
         n.clamp(1.0, 1e6) as u32
     } else {

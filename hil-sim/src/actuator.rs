@@ -187,7 +187,7 @@ pub const STEADY_WINDOW_S: f64 = 0.05;
 /// spring alone the other way, the coil's current rise included) \[s\]; `None` without
 /// reference shaping.
 #[must_use]
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 pub fn minimum_move_s(settings: &ema::control::Settings, from_m: f64, to_m: f64) -> Option<f64> {
     Some(f64::from(
         planner(settings)?.minimum_time_s(from_m as f32, to_m as f32),
@@ -197,7 +197,7 @@ pub fn minimum_move_s(settings: &ema::control::Settings, from_m: f64, to_m: f64)
 /// The settling target of a move ([`ema::shaping::Config::settling_target_s`]), or the
 /// paper's 0.2 s for settings without reference shaping (the paper's reproduction) \[s\].
 #[must_use]
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 pub fn settling_target_s(settings: &ema::control::Settings, from_m: f64, to_m: f64) -> f64 {
     planner(settings).map_or(f64::from(SETTLING_CLAIM_S), |p| {
         f64::from(p.settling_target_s(from_m as f32, to_m as f32))
@@ -207,7 +207,7 @@ pub fn settling_target_s(settings: &ema::control::Settings, from_m: f64, to_m: f
 /// The PWM full-scale compare value at `rate_hz` for a centre-aligned timer clocked at
 /// [`TIMER_CLOCK_HZ`]: half a period in counts, plus one for 100 %.
 #[must_use]
-#[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+#[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
 pub fn pwm_full_scale(rate_hz: f64) -> u16 {
     let counts = (TIMER_CLOCK_HZ / (2.0 * rate_hz)).round();
     (counts.clamp(1.0, f64::from(u16::MAX - 1)) as u16) + 1
@@ -241,7 +241,7 @@ pub fn scenario(name: &str, act: &Actuator) -> Result<Scenario, Error> {
     let stroke = f64::from(act.mechanics.stroke_m);
     let at = |k: usize| SEQUENCE.get(k).map_or(0.0, |f| f * stroke);
     let segment_s = segment_s(&controller, stroke);
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     let steps = (1..SEQUENCE.len())
         .map(|k| StepAt {
             at_s: segment_s * k as f64,
@@ -249,7 +249,7 @@ pub fn scenario(name: &str, act: &Actuator) -> Result<Scenario, Error> {
         })
         .collect();
     let rate_hz = f64::from(act.board.rate_hz);
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     let duration_s = segment_s * SEQUENCE.len() as f64;
     Ok(Scenario {
         name: name.to_owned(),

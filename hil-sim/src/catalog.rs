@@ -200,7 +200,7 @@ pub fn load_at_rate(name_or_path: &str, rate_hz: f64) -> Result<Scenario, LoadEr
         }
     }
     let (name, act) = crate::actuator::load(name_or_path)?;
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     let act = act.with_rate_hz(rate_hz as f32);
     checked(&act, name_or_path, &name)
 }

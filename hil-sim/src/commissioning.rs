@@ -178,7 +178,7 @@ pub fn measured(
 ) -> Result<(Actuator, f32), Error> {
     let mut a = *file;
     a.coil.resistance_ohm = report.resistance.ohm;
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     if let Some(m) = mechanics {
         a.mechanics.spring_n_per_m = m.spring.n_per_m as f32;
         a.mechanics.preload_n = m.spring.preload_n as f32;
@@ -228,7 +228,7 @@ pub fn measured(
     }
     a.tuning = None;
     a.plant().map_err(Error::Actuator)?;
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     if let Some(d) = mechanics.and_then(|m| m.form_deviation(&a)) {
         a.tolerance.surface = a.tolerance.surface.min(SURFACE_CLASS as f32).max(d as f32);
     }
@@ -299,7 +299,7 @@ impl Mechanics {
             .iter()
             .flatten()
             .map(|&(x, l, _)| {
-                #[allow(clippy::cast_possible_truncation)]
+                #[expect(clippy::cast_possible_truncation)]
                 let form = plant.magnetics.inductance_h(plant.gap_m(x as f32));
                 (f64::from(form) / l - 1.0).abs()
             })
@@ -341,7 +341,7 @@ impl Mechanics {
             fit_armature(report, circuit, &spring, holds)
         });
         let force = pull(report, circuit);
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let restless = holds.windows.iter().any(|w| {
             let x: Vec<f64> = w.iter().map(|&(y, i)| force(y, i).0).collect();
             let n = x.len() as f64;
@@ -349,7 +349,7 @@ impl Mechanics {
             (x.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt() > REST_SHARE * stroke_m
         });
         if let Some(arm) = armature.filter(|_| restless) {
-            #[allow(clippy::cast_precision_loss)]
+            #[expect(clippy::cast_precision_loss)]
             let n = spring.holds.len() as f64;
             let x = spring.holds.iter().map(|h| h.0).sum::<f64>() / n;
             let f = spring.holds.iter().map(|h| h.1).sum::<f64>() / n;
@@ -391,7 +391,7 @@ pub struct Holds {
 /// window is its last [`HOLD_WINDOW_SHARE`]); each in the board's
 /// [`ema::device::CAPTURE_CAPACITY`] samples.
 #[must_use]
-#[allow(
+#[expect(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
     clippy::cast_precision_loss
@@ -522,7 +522,7 @@ pub struct Holding {
 /// One attempt at the holds of [`mechanics`] with the file `a` measured as `m` (its
 /// tuning the attempt's): what they measured or the fault that ended them, and the
 /// actuator time they took \[s\].
-#[allow(
+#[expect(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
     clippy::cast_precision_loss
@@ -716,7 +716,7 @@ pub fn hold_probe(a: &Actuator) -> crate::scenario::InductanceProbe {
 /// step down and the step up after it), over every run. `None` without two such cycles,
 /// or a current that did not step.
 #[must_use]
-#[allow(clippy::cast_precision_loss)]
+#[expect(clippy::cast_precision_loss)]
 pub fn probe_inductance(
     runs: &[(&[f64], &[f64], &[f64])],
     motion_a_s_per_m: f64,
@@ -761,7 +761,7 @@ pub fn probe_inductance(
 
 /// One probe's cycles for [`probe_inductance`]: for each step down and the step up after
 /// it, the current's change and the running sum's (the upper levels' less the lower's).
-#[allow(clippy::cast_precision_loss)]
+#[expect(clippy::cast_precision_loss)]
 fn probe_pairs(
     u_v: &[f64],
     i_a: &[f64],
@@ -841,7 +841,6 @@ pub struct ProbeSample {
 ///   low. It is taken out with the hold's current, the position readings and the
 ///   `line`'s `L'`.
 #[must_use]
-#[allow(clippy::cast_precision_loss)]
 pub fn hold_inductance(
     runs: &[Vec<ProbeSample>],
     probe: &crate::scenario::InductanceProbe,
@@ -922,14 +921,14 @@ pub fn fit_spring(
     let force = pull(report, circuit);
     let (mass_kg, friction) = dynamics.unwrap_or((0.0, 0.0));
     let means = holds.each_ref().map(|w| {
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let n = w.len() as f64;
         let rate = PI / (n * dt_s);
         let (sw, sx, sf, sa, sv) = w.iter().enumerate().fold(
             (0.0, 0.0, 0.0, 0.0, 0.0),
             |(sw, sx, sf, sa, sv), (k, &(y, i))| {
                 let (x, f) = force(y, i);
-                #[allow(clippy::cast_precision_loss)]
+                #[expect(clippy::cast_precision_loss)]
                 let phase = PI * (k as f64 + 0.5) / n;
                 let w = phase.sin().powi(2);
                 let w1 = rate * (2.0 * phase).sin();
@@ -939,7 +938,7 @@ pub fn fit_spring(
         );
         (sx / sw, (sf - mass_kg * sa - friction * sv) / sw)
     });
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     let n = means.len() as f64;
     let mx = means.iter().map(|h| h.0).sum::<f64>() / n;
     let mf = means.iter().map(|h| h.1).sum::<f64>() / n;
@@ -1114,7 +1113,7 @@ impl Circuit {
     /// (mu0 S(0) N^2)`, `S(0)` the fringing coefficient times the sides), the growth as
     /// `fringing_spread = q a` and the iron's reluctance `c0 N^2`.
     #[must_use]
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn geometry(&self, turns: f32, file: ema::actuator::Magnetics) -> ema::actuator::Magnetics {
         let ema::actuator::Magnetics::Geometry {
             gaps,
@@ -1184,7 +1183,7 @@ impl Circuit {
         } else {
             let most = GROWTH_MAX / stops.open_gap_m;
             let grid = 64;
-            #[allow(clippy::cast_precision_loss)]
+            #[expect(clippy::cast_precision_loss)]
             let at = |j: usize| most * (j as f64 / grid as f64).powi(2);
             let j = (0..=grid)
                 .min_by(|&p, &q| line(at(p)).2.total_cmp(&line(at(q)).2))
@@ -1522,7 +1521,7 @@ pub const CURVE_POSITIONS: usize = 17;
 ///
 /// # Errors
 /// A file whose circuit no actuator can have.
-#[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
+#[expect(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
 pub fn curve_error(model: &Actuator, plant: &Params) -> Result<f64, Error> {
     let model = model.plant().map_err(Error::Actuator)?;
     Ok((0..CURVE_POSITIONS)
@@ -1576,7 +1575,7 @@ pub const STOP_SHARE: f64 = 0.01;
 /// sliding-mode current that alternates from tick to tick would, sampled, integrate to a
 /// pull off by its ripple, and its mean would miss the ripple's share of the pull.
 #[must_use]
-#[allow(clippy::cast_precision_loss)]
+#[expect(clippy::cast_precision_loss)]
 pub fn fit_armature(
     report: &Report,
     circuit: Circuit,

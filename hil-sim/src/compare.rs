@@ -59,7 +59,7 @@ impl Row {
 ///
 /// # Errors
 /// An unknown law name.
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 pub fn scenario(law_name: &str, rate_hz: f64, supply_v: f64) -> Result<Scenario, Error> {
     let mut sc = Scenario::product(rate_hz, supply_v)?;
     sc.name = format!("{law_name}-{}khz-{supply_v}v", rate_hz / 1e3);

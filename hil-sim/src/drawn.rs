@@ -250,7 +250,7 @@ fn log_uniform(rng: &mut impl Rng, r: Range) -> f64 {
 }
 
 /// `v` to three significant figures, as `f32` (what a datasheet gives).
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 fn sig3(v: f64) -> f32 {
     if v == 0.0 || !v.is_finite() {
         return v as f32;
@@ -265,7 +265,7 @@ fn sig3(v: f64) -> f32 {
 
 /// `v` to three significant figures rounded up, as `f32`: a full scale a rule bounds from
 /// below.
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 fn sig3_up(v: f64) -> f32 {
     let scale = 10f64.powi(2 - v.abs().log10().floor() as i32);
     let up = (v * scale).ceil() / scale;

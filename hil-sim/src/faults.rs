@@ -275,7 +275,7 @@ pub fn cases(base: &Scenario) -> Result<Vec<Case>, Error> {
 
 /// Duration \[s\] of the move the settings' planner makes from `x0_m` to `x1_m` (0.1 s
 /// when the settings have no shaping).
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 fn planned_move_s(settings: &ema::control::Settings, x0_m: f64, x1_m: f64) -> f64 {
     let min_s = settings.shaping.map_or(0.0, |s| s.duration_min_s);
     crate::actuator::planner(settings).map_or(0.1, |p| {
@@ -401,7 +401,7 @@ impl Spread {
     #[must_use]
     pub fn misses(&self) -> Vec<&'static str> {
         let mut out = Vec::new();
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let share = |k: usize, of: usize| k as f64 / of.max(1) as f64;
         if share(self.named_once_observable, self.observable) < NAMED_SHARE {
             out.push("named late or not");
@@ -435,7 +435,7 @@ impl Spread {
         if n == 0 {
             return None;
         }
-        #[allow(
+        #[expect(
             clippy::cast_precision_loss,
             clippy::cast_possible_truncation,
             clippy::cast_sign_loss

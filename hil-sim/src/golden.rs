@@ -34,7 +34,7 @@ pub const SEED: u64 = 2026;
 ///
 /// # Errors
 /// Settings of the case that the simulator refuses.
-#[allow(clippy::cast_precision_loss)]
+#[expect(clippy::cast_precision_loss)]
 pub fn scenario(case: &Case) -> Result<Scenario, Error> {
     let settings = (case.settings)()?;
     let rate_hz = f64::from(settings.rate_hz);

@@ -274,7 +274,7 @@ impl Watchdog {
     pub fn reference(rate_hz: f64) -> Self {
         let quiet_ns = f64::from(ema::guard::WATCHDOG_QUIET_PERIODS) * 1e9 / rate_hz;
         // Bounded to [0, u32::MAX] before the cast.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let quiet_ns = quiet_ns.round().clamp(0.0, f64::from(u32::MAX)) as u32;
         let w = ema::guard::Watchdog::at_least(REFERENCE_APB1_HZ, quiet_ns);
         Self {
@@ -306,7 +306,7 @@ impl Watchdog {
 /// `0..vbus_full_scale_v`. The board's own (`Calibration::board()`) is +-16.5 A and 72.6 V;
 /// a 150 V scenario with the paper's 21 A start-up needs about 225 V and +-40 A.
 #[must_use]
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 pub fn calibration(vbus_full_scale_v: f64, current_full_scale_a: f64) -> Calibration {
     let board = Calibration::board();
     Calibration {
@@ -577,7 +577,7 @@ impl Converter {
             ADC_MAX_CODE
         } else {
             // In (0, 4095): exact integer value, the cast cannot truncate.
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
             let code = q as u16;
             code
         }

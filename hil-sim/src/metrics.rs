@@ -132,7 +132,7 @@ const BOUNDS_POINTS: u32 = 400;
 ///
 /// # Errors
 /// A controller plant whose envelope cannot be built.
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 pub fn bounds_check(controller: &ema::model::Plant, plant: &Params) -> Result<BoundsCheck, Error> {
     let env = controller.envelope()?;
     let mut c = BoundsCheck {
@@ -315,7 +315,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
         if win.is_empty() {
             f64::NAN
         } else {
-            #[allow(clippy::cast_precision_loss)]
+            #[expect(clippy::cast_precision_loss)]
             let n = win.len() as f64;
             win.iter().map(f).sum::<f64>() / n
         }
@@ -328,7 +328,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
             (worse_low(lo, s.i_a), worse(hi, s.i_a))
         });
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     let u_rms_v = if seg.is_empty() {
         f64::NAN
     } else {

@@ -81,7 +81,7 @@ impl MonteCarlo {
     /// At most [`MISS_SHARE`] of the draws miss a target.
     #[must_use]
     pub fn pass(&self) -> bool {
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let share = self.missing as f64 / self.draws.max(1) as f64;
         share <= MISS_SHARE
     }

@@ -176,7 +176,7 @@ impl Convention {
 
     /// The core's convention with the same meaning.
     #[must_use]
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn to_core(&self) -> ema::model::Convention {
         match *self {
             Convention::Paper => ema::model::Convention::Paper,
@@ -331,7 +331,7 @@ impl Params {
             },
         };
         // A gap count is a small positive integer stored as f32 in the core.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let n = f64::from(m.gaps).round().max(1.0) as usize;
         Self {
             mass_kg: f64::from(plant.mass_kg),

@@ -200,7 +200,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
     let mut last = ema::control::Status::default();
     let period_ns = 1e9 / scenario.rate_hz();
     // The guard counts nanoseconds; one period is far inside its 32-bit range.
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let guard = guard::Config::for_period(period_ns.round() as u32);
     let mut guarded = guard::State::default();
     let mut watchdog = hal::Watchdog::reference(scenario.rate_hz());
@@ -208,7 +208,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
     for _ in 0..n {
         let now = stepper.sample();
         // Non-negative and far below 2^64 ns; the guard's counter wraps at 2^32.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let now_ns = (now.t_s * 1e9).round() as u64;
         let r = scenario.reference.position_m(now.t_s);
         // Faults whose time has come (a period's worth of slack for the f64 clock).
@@ -237,7 +237,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
             last
         } else {
             let start = Start {
-                #[allow(clippy::cast_possible_truncation)]
+                #[expect(clippy::cast_possible_truncation)]
                 now: now_ns as u32,
                 hardware_trip: stepper.broken(),
             };
@@ -249,7 +249,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
                 &mut bridge,
                 start,
                 |ctl, bridge| {
-                    #[allow(clippy::cast_possible_truncation)]
+                    #[expect(clippy::cast_possible_truncation)]
                     match converter.as_mut() {
                         None => config.tick_measured(
                             ctl,
@@ -557,7 +557,7 @@ impl Stepper {
     pub fn sample(&self) -> Truth {
         let s = &self.state;
         let i = self.plant.current_a(s);
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let t_s = self.k as f64 * self.ts_s;
         Truth {
             t_s,
@@ -603,7 +603,7 @@ impl Stepper {
     /// Advances one ISR period with the bridge lines selecting `drive`.
     pub fn advance(&mut self, drive: Switches, mode: BridgeMode) -> Period {
         let ts = self.ts_s;
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let mut t = self.k as f64 * ts;
         let i0 = self.plant.current_a(&self.state);
         // Running integrals restart every period.
@@ -712,7 +712,7 @@ enum Phase {
 /// that no substep is longer than `T / substeps`.
 fn count(x: f64) -> u32 {
     // Bounded to [1, 1e6] before the cast.
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let n = (x - 1e-9).ceil().clamp(1.0, 1e6) as u32;
     n
 }

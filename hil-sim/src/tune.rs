@@ -63,7 +63,7 @@ pub struct Candidate {
 impl Candidate {
     /// As the actuator file's tuning section.
     #[must_use]
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn tuning(&self) -> Tuning {
         Tuning {
             alpha_per_s: self.alpha as f32,
@@ -157,7 +157,7 @@ impl Space {
         let cap = ALPHA_PER_RATE * 2.0 * std::f64::consts::PI * rate_min_hz;
         let default = f64::from(ema::actuator::DEFAULT_ALPHA_PER_W);
         let steps = |per_w: f64| (per_w / default).ln() / ALPHA_STEP.ln();
-        #[allow(clippy::cast_possible_truncation)]
+        #[expect(clippy::cast_possible_truncation)]
         let (low, high) = (
             steps(ALPHA_LOW_PER_W).floor() as i32,
             steps(ALPHA_HIGH_PER_W).ceil() as i32,
@@ -403,7 +403,7 @@ pub struct Report {
 ///
 /// # Errors
 /// Settings that do not derive.
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 pub fn condition(
     name: &str,
     act: &Actuator,
@@ -448,7 +448,7 @@ fn judge(w: &Worst, t: &Targets) -> (f64, &'static str) {
 /// # Errors
 /// No rate; an actuator whose settings do not derive or that breaks a physical rule
 /// ([`Actuator::check_consistency`]); a scenario that does not validate.
-#[allow(clippy::too_many_lines)]
+#[expect(clippy::too_many_lines)]
 pub fn tune(
     name: &str,
     act: &Actuator,

@@ -456,7 +456,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     // With the tolerances the measurement leaves, on the board too: the spring's and the
     // surfaces' classes (the circuit's fit read this one within its class).
     assert_eq!(board.tolerance, measured.tolerance);
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     let classes = (
         hil_sim::commissioning::SPRING_CLASS as f32,
         hil_sim::commissioning::SURFACE_CLASS as f32,

@@ -643,7 +643,7 @@ fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
             ..Default::default()
         };
         let fit = Circuit::fit(&report, &a, &holds);
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let worst = (0..CURVE_POSITIONS)
             .map(|j| stroke * j as f64 / (CURVE_POSITIONS - 1) as f64)
             .map(|x| (fit.inductance_h(x) / at(x) - 1.0).abs())

@@ -122,7 +122,7 @@ fn every_actuator_of_the_family_meets_every_target_on_sampled_plants() {
             rates.push(20e3);
         }
         for rate in rates {
-            #[allow(clippy::cast_possible_truncation)]
+            #[expect(clippy::cast_possible_truncation)]
             let sc = actuator::scenario(&name, &act.with_rate_hz(rate as f32))
                 .unwrap()
                 .with_substeps(3);

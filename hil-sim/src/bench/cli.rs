@@ -586,7 +586,7 @@ fn measure_mechanics<P: Port>(
     let capacity = u16::try_from(ema::device::CAPTURE_CAPACITY).unwrap_or(u16::MAX);
     let (move_decimation, window_decimation) =
         crate::commissioning::decimations(&settings, stroke_m, rate_hz);
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let window_samples = ((crate::commissioning::HOLD_WINDOW_SHARE * hold_s * rate_hz
         / f64::from(window_decimation))
     .round()
@@ -655,7 +655,7 @@ fn measure_mechanics<P: Port>(
                     .collect())
             };
             for (k, f) in crate::actuator::SEQUENCE.into_iter().enumerate() {
-                #[allow(clippy::cast_possible_truncation)]
+                #[expect(clippy::cast_possible_truncation)]
                 let c = capture_move(
                     link,
                     capacity,

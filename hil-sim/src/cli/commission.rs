@@ -267,7 +267,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
 /// the values of `v` that could be read, the target, and how many are over it (empty: a
 /// quantity without one), where a NaN (a value that could not be read: a probe that read
 /// nothing, a move not fitted) counts as over.
-#[allow(
+#[expect(
     clippy::cast_precision_loss,
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss

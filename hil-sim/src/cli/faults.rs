@@ -96,7 +96,7 @@ pub const RANDOM_HEADER: [&str; 14] = [
 #[must_use]
 pub fn random_row(s: &Spread) -> [String; 14] {
     let us = |v: Option<f64>| v.map_or_else(|| "-".into(), |s| sig(s * 1e6, 3));
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     let share = 100.0 * s.within_deadline as f64 / s.n.max(1) as f64;
     [
         s.name.clone(),
@@ -149,11 +149,11 @@ pub fn random_table(spreads: &[Spread]) -> Table {
 /// A scenario that does not validate; a failed write.
 pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     let (name, mut act) = crate::actuator::load(&args.actuator)?;
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     if let Some(r) = args.rate_hz {
         act = act.with_rate_hz(r as f32);
     }
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     if let Some(v) = args.supply_v {
         act = act.with_supply_v(v as f32);
     }

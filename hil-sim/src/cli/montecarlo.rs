@@ -165,7 +165,7 @@ pub fn worst_table(draws: &[Draw]) -> Table {
     row("peak current [A]", worst(draws, |s| s.i_peak_a), 4);
     row("peak |u| [V]", worst(draws, |s| s.u_peak_v), 4);
     row("peak |u command| [V]", worst(draws, |s| s.u_cmd_peak_v), 4);
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     row(
         "saturated samples",
         worst(draws, |s| s.saturated_samples as f64),
@@ -212,7 +212,7 @@ pub fn targets_table(draws: &[Draw], t: &Targets) -> (Table, usize) {
     let all = Worst::of_draws(draws, t);
     let count = |name: &str| misses.iter().filter(|m| m.contains(&name)).count();
     let mut table = Table::new(["target", "limit", "worst", "draws missing it"]);
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     for (label, key, limit, worst) in [
         ("settling / its target", "settling", 1.0, all.settling_ratio),
         (

@@ -96,7 +96,7 @@ fn detrended_pp(w: &[Sample], f: impl Fn(&Sample) -> f64) -> f64 {
     if w.len() < 2 {
         return 0.0;
     }
-    #[allow(clippy::cast_precision_loss)]
+    #[expect(clippy::cast_precision_loss)]
     let n = w.len() as f64;
     let mt = w.iter().map(|s| s.t_s).sum::<f64>() / n;
     let my = w.iter().map(&f).sum::<f64>() / n;
@@ -303,7 +303,7 @@ fn equilibrium_um(sc: &Scenario, r: &Run) -> f64 {
         .map_or(0.0, |s| s.to_m);
     let p = &r.plant;
     let env = sc.controller.plant.envelope();
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     let mu_lo = env.map_or(f64::NAN, |e| {
         f64::from(e.mu_lo(sc.controller.plant.gap_m(y as f32)))
     });

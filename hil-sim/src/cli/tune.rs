@@ -84,7 +84,7 @@ pub struct Outcome {
 /// # Errors
 /// An actuator that cannot be loaded; a failed run or write. Finding no candidate is not
 /// an error here (the outcome says so); the command line exits with a failure then.
-#[allow(clippy::too_many_lines)]
+#[expect(clippy::too_many_lines)]
 pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     anyhow::ensure!(
         args.substeps > 0,

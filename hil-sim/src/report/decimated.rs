@@ -114,7 +114,7 @@ pub fn decimate(trace: &[Sample], every: usize) -> Vec<Row> {
                 u_min = u_min.min(b.u_mean_v);
                 u_max = u_max.max(b.u_mean_v);
             }
-            #[allow(clippy::cast_precision_loss)]
+            #[expect(clippy::cast_precision_loss)]
             let n = bucket.len() as f64;
             Some(Row {
                 t_s: s.t_s,

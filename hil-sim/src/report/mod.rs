@@ -65,7 +65,7 @@ pub fn sig(v: f64, digits: usize) -> String {
         return format!("{:.*e}", digits.saturating_sub(1), v);
     }
     // Decimals so that `digits` significant digits show; at least 0.
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let decimals = (digits as f64 - 1.0 - mag).max(0.0) as usize;
     let s = format!("{v:.decimals$}");
     if s.contains('.') {

@@ -123,7 +123,7 @@ impl Integration {
     pub fn for_rate(rate_hz: f64) -> Self {
         let n = (1.0 / (rate_hz * MAX_SUBSTEP_S)).ceil();
         // Bounded to [1, 1e6] before the cast.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let substeps = if n.is_finite() {
             n.clamp(1.0, 1e6) as u32
         } else {

@@ -101,14 +101,14 @@ impl InductanceProbe {
 
     /// The controller's probe, started (as the board starts it on [`Self::command`]).
     #[must_use]
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn start(&self) -> ema::control::Probe {
         ema::control::Probe::new(self.amplitude_a as f32, self.half_ticks, self.cycles)
     }
 
     /// The board's command that starts it.
     #[must_use]
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn command(&self) -> ema::protocol::Command<'static> {
         ema::protocol::Command::Probe {
             amplitude_a: self.amplitude_a as f32,
@@ -202,7 +202,7 @@ impl Scenario {
     /// creeps: at 0.6 s the error is still 0.7 %, at 1 s it has reached its 0.49 %), the
     /// error probed at 0.5 s, a current trip of 30 A (the law asks for 22 A at start-up).
     #[must_use]
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn paper(rate_hz: f64) -> Self {
         let mut controller = Settings::paper(rate_hz as f32, PAPER_SUPPLY_V as f32);
         controller.sense = hal::calibration(1.5 * PAPER_SUPPLY_V, 40.0);
@@ -248,7 +248,7 @@ impl Scenario {
     ///
     /// # Errors
     /// A rate or supply the derivation refuses, by name.
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn product(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
         let act = Actuator::PRODUCT
             .with_rate_hz(rate_hz as f32)
@@ -274,7 +274,7 @@ impl Scenario {
     ///
     /// # Errors
     /// A rate or supply the derivation refuses, by name.
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn product_sequence(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
         let act = Actuator::PRODUCT
             .with_rate_hz(rate_hz as f32)
@@ -337,7 +337,7 @@ impl Scenario {
 
     /// Sets the instantaneous over-current trip of the controller \[A\].
     #[must_use]
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     pub fn with_current_trip_a(mut self, trip_a: f64) -> Self {
         self.controller.limits.current_trip_a = trip_a as f32;
         self
@@ -390,7 +390,7 @@ impl Scenario {
     pub fn ticks(&self) -> usize {
         let n = (self.duration_s * self.rate_hz()).round();
         // Validated finite and bounded before use; negative or NaN gives 0.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let n = if n.is_finite() && n > 0.0 {
             n as usize
         } else {

@@ -37,10 +37,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{self, Error};
-use crate::math;
-use crate::sense::ADC_MAX_CODE;
-use crate::supervisor::Fault;
+use crate::control::config::{self, Error};
+use crate::control::math;
+use crate::control::sense::ADC_MAX_CODE;
+use crate::control::supervisor::Fault;
 
 /// Codes of the 12-bit converter.
 const FULL_SCALE_CODES: f32 = 4096.0;

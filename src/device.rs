@@ -64,21 +64,21 @@ use embedded_hal::pwm::SetDutyCycle;
 use heapless::spsc::{Consumer, Producer, Queue};
 
 use crate::analog::{self, Source as SetpointSource};
-use crate::bridge::{HBridge, Mode as BridgeMode};
 use crate::commission;
+use crate::control::bridge::{HBridge, Mode as BridgeMode};
+use crate::control::math;
+use crate::control::sense::{Frame, Measurement};
+use crate::control::supervisor::{Fault, FAULT_COUNT};
 use crate::control::{self, Status as TickStatus};
 use crate::guard::{self, End, Start};
 use crate::liveness::{self, Pulse};
-use crate::math;
 use crate::params::{Board, Params, Refused};
 use crate::protocol::{
     self, Build, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid,
     LoadError, Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status,
     StoreError, Telemetry, Trigger, MAX_FRAME,
 };
-use crate::sense::{Frame, Measurement};
 use crate::store::Store;
-use crate::supervisor::{Fault, FAULT_COUNT};
 
 /// Samples the firmware's capture buffer holds (at 20 kHz with a decimation of 20: 0.256 s).
 pub const CAPTURE_CAPACITY: usize = 256;
@@ -1102,7 +1102,7 @@ pub fn boot<F: embedded_storage::nor_flash::NorFlash>(
     defaults: &Params,
     board: &Board,
     save: Option<&Params>,
-) -> Result<Boot, crate::config::Error> {
+) -> Result<Boot, crate::control::config::Error> {
     let saved = save.map(|p| store.save(p));
     let stored = store.load().and_then(|p| match p.build(board) {
         Ok(install) => Ok((p, install)),
@@ -1410,8 +1410,12 @@ impl Dispatcher {
             .map_err(|e| Refusal::Invalid(Invalid::from(e)))
     }
 
-    fn invalid(param: &'static str, value: f32, reason: crate::config::Reason) -> Refusal<'static> {
-        Refusal::Invalid(Invalid::from(crate::config::Error {
+    fn invalid(
+        param: &'static str,
+        value: f32,
+        reason: crate::control::config::Reason,
+    ) -> Refusal<'static> {
+        Refusal::Invalid(Invalid::from(crate::control::config::Error {
             param,
             value,
             reason,
@@ -1426,7 +1430,7 @@ impl Dispatcher {
         ends: &mut MainEnds<'_>,
         storage: &mut dyn Storage,
     ) {
-        use crate::config::Reason;
+        use crate::control::config::Reason;
         let then = Then::Reply;
         match command {
             Command::Status => self.order(seq, Order::Status, then, ends),
@@ -1445,7 +1449,7 @@ impl Dispatcher {
                 cycles,
             } => {
                 let rated = self.params.actuator.coil.rated_current_a;
-                let checked = crate::config::within(
+                let checked = crate::control::config::within(
                     "probe.amplitude_a",
                     amplitude_a,
                     0.0,
@@ -1464,11 +1468,11 @@ impl Dispatcher {
             Command::Move { position_m, time_s } => {
                 let stroke = self.params.actuator.mechanics.stroke_m;
                 let refusal = if let Err(e) =
-                    crate::config::within("move.position_m", position_m, 0.0, stroke)
+                    crate::control::config::within("move.position_m", position_m, 0.0, stroke)
                 {
                     Some(Refusal::Invalid(Invalid::from(e)))
-                } else if let Some(Err(e)) =
-                    time_s.map(|t| crate::config::within("move.time_s", t, 0.0, MAX_MOVE_S))
+                } else if let Some(Err(e)) = time_s
+                    .map(|t| crate::control::config::within("move.time_s", t, 0.0, MAX_MOVE_S))
                 {
                     Some(Refusal::Invalid(Invalid::from(e)))
                 } else if self.params.setpoint.source != SetpointSource::Link {

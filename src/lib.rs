@@ -15,18 +15,18 @@
 //!
 //! | module | concept |
 //! |---|---|
-//! | [`actuator`] | an actuator file (datasheet and bench) and every setting derived from it |
-//! | [`model`] | reluctance network with flux fringing, `rho`, `L`, `mu` and their bounds |
-//! | [`sense`] | raw ADC codes to SI measurements, plausibility |
-//! | [`observer`] | velocity (and a force disturbance) from the sampled position |
-//! | [`shaping`] | the reference: set points shaped within the actuator's force limits |
-//! | [`law`] | the control laws: the paper's law and the practical variants |
-//! | [`supervisor`] | limits, latched faults, safe state |
-//! | [`bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
+//! | [`control::actuator`] | an actuator file (datasheet and bench) and every setting derived from it |
+//! | [`control::model`] | reluctance network with flux fringing, `rho`, `L`, `mu` and their bounds |
+//! | [`control::sense`] | raw ADC codes to SI measurements, plausibility |
+//! | [`control::observer`] | velocity (and a force disturbance) from the sampled position |
+//! | [`control::shaping`] | the reference: set points shaped within the actuator's force limits |
+//! | [`control::law`] | the control laws: the paper's law and the practical variants |
+//! | [`control::supervisor`] | limits, latched faults, safe state |
+//! | [`control::bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
 //! | [`commission`] | measuring the actuator on the board, loop open: the coil's resistance from two voltage steps, its inductance at both end stops from step responses, the position sensor's readings there |
 //! | [`control`] | the configuration, the state and the one `tick` |
 //! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
-//! | [`trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
+//! | [`control::trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
 //!
 //! Around the tick, the board's application, shared by the firmware and the virtual board:
 //!
@@ -43,7 +43,7 @@
 //!
 //! * Force direction: as printed, the magnetic force opens the airgap. A reluctance force
 //!   closes it, and its stiffness destabilises the armature near the closed stop. Both
-//!   conventions are supported ([`model::Convention`]): `Physical` (the stroke coordinate,
+//!   conventions are supported ([`control::model::Convention`]): `Physical` (the stroke coordinate,
 //!   the force closes the gap, back-EMF `-x2 x3 mu`) is the product's everywhere;
 //!   `Paper`, as printed, only reproduces the paper.
 //! * `mu_lo`/`mu_hi` are the exact extremes over the `rho_x` interval (the paper's formula
@@ -57,7 +57,7 @@
 //! * Theorem 1's ball radius is a Lyapunov bound of the order of a metre, not a precision
 //!   figure; it is computed and reported as such.
 //! * Sampled at firmware rates the paper's law chatters tens of amperes. The product's law
-//!   ([`law::practical`], the "practical law") keeps the paper's structure (backstepping on
+//!   ([`control::law::practical`], the "practical law") keeps the paper's structure (backstepping on
 //!   position and velocity on the robust design model, a sliding-mode current law built on
 //!   the inductance bounds) and redesigns each stage for a sampled, delayed, noisy loop;
 //!   the reason for each term is in its module docs.
@@ -66,7 +66,7 @@
 //!
 //! * `#![no_std]` always (also in test builds of the library itself), no heap.
 //! * `f32` only. Every operation the tick uses is IEEE-exact (`+ - * /` and a correctly
-//!   rounded square root, [`math::sqrt`]), so the host and the Cortex-M4F compute the same
+//!   rounded square root, [`control::math::sqrt`]), so the host and the Cortex-M4F compute the same
 //!   bits for the same inputs.
 //! * The tick cannot fail and cannot panic: `unwrap`, `expect`, `panic!`, indexing that can
 //!   panic, unchecked casts and integer overflow are denied by lints below. Any non-finite or
@@ -75,7 +75,7 @@
 //! ## Example: the paper's actuator under the paper's law
 //!
 //! ```
-//! use ema::{law, model};
+//! use ema::control::{law, model};
 //!
 //! let plant = model::Plant::paper();
 //! let paper = law::paper::Gains::paper().build(&plant, 1.0 / 20_000.0).unwrap();
@@ -120,23 +120,12 @@
     )
 )]
 
-pub mod actuator;
 pub mod analog;
-pub mod bridge;
 pub mod commission;
-pub mod config;
 pub mod control;
 pub mod device;
 pub mod guard;
-pub mod law;
 pub mod liveness;
-pub mod math;
-pub mod model;
-pub mod observer;
 pub mod params;
 pub mod protocol;
-pub mod sense;
-pub mod shaping;
 pub mod store;
-pub mod supervisor;
-pub mod trace;

@@ -28,8 +28,8 @@
 //! exclusive accesses); the interrupt only compares a counter with the value it saw
 //! last, so wrapping is harmless.
 //!
-//! [`LinkTimeout`]: crate::supervisor::Fault::LinkTimeout
-//! [`MainLoopStalled`]: crate::supervisor::Fault::MainLoopStalled
+//! [`LinkTimeout`]: crate::control::supervisor::Fault::LinkTimeout
+//! [`MainLoopStalled`]: crate::control::supervisor::Fault::MainLoopStalled
 //!
 //! ```
 //! use ema::liveness::{OnTimeout, Pulse, Settings, Watch};
@@ -61,8 +61,8 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{self, Error};
-use crate::math;
+use crate::control::config::{self, Error};
+use crate::control::math;
 
 /// The link's timeout unless set otherwise \[s\]: a host's heartbeat every quarter of it
 /// (125 ms) survives a desktop operating system's scheduling hiccups of tens of

@@ -18,7 +18,7 @@
 //! use ema::protocol::Value;
 //!
 //! let board = Board { rate_hz: 20_000.0, current_zero_code: None };
-//! let mut p = Params::new(ema::actuator::Actuator::PRODUCT);
+//! let mut p = Params::new(ema::control::actuator::Actuator::PRODUCT);
 //! p.set("board.supply_v", Value::Number(12.0)).unwrap();
 //! assert_eq!(p.get("board.supply_v"), Ok(Value::Number(12.0)));
 //! assert!(p.build(&board).is_ok());
@@ -31,9 +31,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::actuator::{Actuator, Magnetics};
 use crate::analog;
-use crate::config::{self, Error};
+use crate::control::actuator::{Actuator, Magnetics};
+use crate::control::config::{self, Error};
 use crate::control::Settings;
 use crate::device::Install;
 use crate::liveness;
@@ -382,7 +382,7 @@ impl Params {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::actuator::Actuator;
+    use crate::control::actuator::Actuator;
 
     const BOARD: Board = Board {
         rate_hz: 20_000.0,

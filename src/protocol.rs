@@ -68,7 +68,7 @@ use core::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use crate::config;
+use crate::control::config;
 
 /// The link's speed on a serial line \[baud\]: the firmware's UART runs at it and the host
 /// tool opens its port at it (a pseudo-terminal, the virtual board's, ignores it). 8 data
@@ -92,7 +92,7 @@ pub const CHUNK_SAMPLES: usize = 6;
 /// Values per telemetry frame (one per selected [`Signal`]).
 pub const MAX_SIGNALS: usize = 8;
 /// Fault codes the status counts (codes `1..=FAULT_SLOTS`).
-pub const FAULT_SLOTS: usize = crate::supervisor::FAULT_COUNT;
+pub const FAULT_SLOTS: usize = crate::control::supervisor::FAULT_COUNT;
 
 /// A host's request.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -324,7 +324,7 @@ pub enum Refusal<'a> {
         name: &'a str,
     },
     /// A value refused by validation: the field, its value and why, exactly as a build
-    /// refuses an actuator file ([`crate::config::Error`]).
+    /// refuses an actuator file ([`crate::control::config::Error`]).
     Invalid(Invalid<'a>),
     /// The set point comes from the analog input (`setpoint.source`).
     AnalogSetpoint,
@@ -337,7 +337,7 @@ pub enum Refusal<'a> {
     Load(LoadError<'a>),
 }
 
-/// A value refused by validation (the wire form of [`crate::config::Error`]).
+/// A value refused by validation (the wire form of [`crate::control::config::Error`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Invalid<'a> {
     /// Dotted name of the field.
@@ -349,7 +349,7 @@ pub struct Invalid<'a> {
     pub reason: Reason<'a>,
 }
 
-/// Why a value was refused: [`crate::config::Reason`] with borrowed names.
+/// Why a value was refused: [`crate::control::config::Reason`] with borrowed names.
 pub type Reason<'a> = config::Reason<&'a str>;
 
 impl From<config::Error> for Invalid<'static> {
@@ -363,7 +363,7 @@ impl From<config::Error> for Invalid<'static> {
 }
 
 impl fmt::Display for Invalid<'_> {
-    /// The same text as [`crate::config::Error`]'s.
+    /// The same text as [`crate::control::config::Error`]'s.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{} = {}: {}", self.param, self.value, self.reason)
     }
@@ -1099,7 +1099,7 @@ mod tests {
 
     #[test]
     fn refusals_read_as_the_build_writes_them() {
-        use crate::config::{Error, Reason as R};
+        use crate::control::config::{Error, Reason as R};
         let cases = [
             R::NotFinite,
             R::NotPositive,

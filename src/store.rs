@@ -34,7 +34,7 @@
 //! are ready at the first poll, and [`block_on`] runs them without an executor.
 //!
 //! ```
-//! use ema::actuator::Actuator;
+//! use ema::control::actuator::Actuator;
 //! use ema::params::Params;
 //! use ema::protocol::LoadError;
 //! use ema::store::{RamFlash, Store};
@@ -68,7 +68,7 @@ pub const FORMAT: u16 = 2;
 /// Format 1's layout: [`Params`] before the link's timeout.
 #[derive(serde::Deserialize)]
 struct Format1 {
-    actuator: crate::actuator::Actuator,
+    actuator: crate::control::actuator::Actuator,
     setpoint: crate::analog::Settings,
 }
 /// The map key of the parameter set.
@@ -407,7 +407,7 @@ impl<F: NorFlash> NorFlash for ReadOnly<F> {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::actuator::Actuator;
+    use crate::control::actuator::Actuator;
 
     type Flash = RamFlash<1024, 2>;
 

@@ -13,7 +13,7 @@
 
 #[macro_use]
 mod common;
-use ema::bridge::BOARD_MAX_DUTY;
+use ema::control::bridge::BOARD_MAX_DUTY;
 
 use common::session::{Session, FRAMES_HASH, FRAMES_LEN, LINK_TIMEOUT_TICKS, MAIN_LOOP_TICKS};
 use common::Counter;

@@ -1,5 +1,5 @@
 //! Golden traces replayed on the Cortex-M4F: every output bit of every tick must equal what
-//! the host recorded (`ema::trace`, format in `src/trace.rs`). The traces sit in flash
+//! the host recorded (`ema::control::trace`, format in `src/control/trace.rs`). The traces sit in flash
 //! (`include_bytes!`); the bridge is the RAM bridge with the trace's PWM resolution. On a
 //! mismatch the run prints the first differing tick and field and fails.
 //!
@@ -12,7 +12,7 @@
 mod common;
 
 use cortex_m_rt::entry;
-use ema::trace;
+use ema::control::trace;
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {

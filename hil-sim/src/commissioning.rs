@@ -34,9 +34,9 @@
 //! and the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).
 
-use ema::actuator::Actuator;
-use ema::bridge::HBridge;
 use ema::commission::{Abort, Identification, Plan, Report, Step};
+use ema::control::actuator::Actuator;
+use ema::control::bridge::HBridge;
 use rand::Rng;
 
 use crate::bench::board::scenario;
@@ -197,7 +197,7 @@ pub fn measured(
     let circuit = mechanics.map(|m| m.circuit);
     let mut moved = 1.0;
     match (circuit, a.magnetics) {
-        (Some(c), file @ ema::actuator::Magnetics::Geometry { .. }) => {
+        (Some(c), file @ ema::control::actuator::Magnetics::Geometry { .. }) => {
             a.magnetics = c.geometry(a.coil.turns, file);
         }
         (circuit, _) => {
@@ -220,7 +220,7 @@ pub fn measured(
             if intercept < IRON_SHARE * rho_c {
                 moved = ((1.0 - IRON_SHARE + q) * rho_c / (q * rho_o)).sqrt();
             }
-            a.magnetics = ema::actuator::Magnetics::Inductance {
+            a.magnetics = ema::control::actuator::Magnetics::Inductance {
                 open_h: open_h / moved,
                 closed_h: closed_h * moved,
             };
@@ -496,7 +496,7 @@ pub const RETRY_GAIN_SHARE: f32 = 0.6;
 ///
 /// # Errors
 /// An actuator whose tuning does not derive.
-pub fn hold_tuning(m: &Actuator, attempt: u32) -> Result<ema::actuator::Tuning, Error> {
+pub fn hold_tuning(m: &Actuator, attempt: u32) -> Result<ema::control::actuator::Tuning, Error> {
     let mut t = m.tuning_or_default().map_err(Error::Actuator)?;
     for _ in 0..attempt {
         t.alpha_per_s *= RETRY_GAIN_SHARE;
@@ -1115,8 +1115,12 @@ impl Circuit {
     /// `fringing_spread = q a` and the iron's reluctance `c0 N^2`.
     #[must_use]
     #[allow(clippy::cast_possible_truncation)]
-    pub fn geometry(&self, turns: f32, file: ema::actuator::Magnetics) -> ema::actuator::Magnetics {
-        let ema::actuator::Magnetics::Geometry {
+    pub fn geometry(
+        &self,
+        turns: f32,
+        file: ema::control::actuator::Magnetics,
+    ) -> ema::control::actuator::Magnetics {
+        let ema::control::actuator::Magnetics::Geometry {
             gaps,
             pole_a_m,
             pole_b_m,
@@ -1128,12 +1132,12 @@ impl Circuit {
         };
         let n2 = f64::from(turns).powi(2);
         let surface =
-            f64::from(gaps) / (f64::from(ema::model::MU0_H_PER_M) * self.gap_per_h_m * n2);
+            f64::from(gaps) / (f64::from(ema::control::model::MU0_H_PER_M) * self.gap_per_h_m * n2);
         let scale = (surface
             / (f64::from(fringing_coefficient) * f64::from(pole_a_m) * f64::from(pole_b_m)))
         .sqrt();
         let side = scale * f64::from(pole_a_m);
-        ema::actuator::Magnetics::Geometry {
+        ema::control::actuator::Magnetics::Geometry {
             gaps,
             pole_a_m: side as f32,
             pole_b_m: (scale * f64::from(pole_b_m)) as f32,
@@ -1235,10 +1239,10 @@ fn gaps(a: &Actuator) -> (f64, f64) {
 /// The pole's aspect `b / a` in file `a` (a square one for the two-inductance form).
 fn aspect(a: &Actuator) -> f64 {
     match a.magnetics {
-        ema::actuator::Magnetics::Geometry {
+        ema::control::actuator::Magnetics::Geometry {
             pole_a_m, pole_b_m, ..
         } => f64::from(pole_b_m) / f64::from(pole_a_m),
-        ema::actuator::Magnetics::Inductance { .. } => 1.0,
+        ema::control::actuator::Magnetics::Inductance { .. } => 1.0,
     }
 }
 

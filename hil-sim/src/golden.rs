@@ -1,9 +1,9 @@
 //! Golden traces for the Cortex-M4F: the simulator records, tick by tick, the converter
 //! frames and set points it gave the core and every output the core produced (as bit
-//! patterns, `ema::trace` format); the emulated target replays the inputs through its own
+//! patterns, `ema::control::trace` format); the emulated target replays the inputs through its own
 //! `Config::tick` and must reproduce every output bit (`tests/qemu_golden.rs`).
 //!
-//! One trace per reference case of `ema::trace::CASES` (every law variant), each on the
+//! One trace per reference case of `ema::control::trace::CASES` (every law variant), each on the
 //! product's realistic conditions: a plant drawn from the uncertainty set (fixed seed),
 //! converter noise and one sample of delay, a 24 V supply with its internal resistance,
 //! the firmware's PWM resolution (TIM1 at 20 kHz from 168 MHz: [`BOARD_MAX_DUTY`], 4201 counts), the product's
@@ -17,8 +17,8 @@
 
 use std::path::Path;
 
-use ema::bridge::BOARD_MAX_DUTY;
-use ema::trace::{Case, Header, CASES, MIN_GOLDEN_TICKS};
+use ema::control::bridge::BOARD_MAX_DUTY;
+use ema::control::trace::{Case, Header, CASES, MIN_GOLDEN_TICKS};
 
 use crate::error::Error;
 use crate::hal::Adc;

@@ -1,4 +1,4 @@
-//! Mock hardware: the PWM channel and pins the core's [`ema::bridge::HBridge`] drives, the
+//! Mock hardware: the PWM channel and pins the core's [`ema::control::bridge::HBridge`] drives, the
 //! bridge and supply they switch, the converter that produces raw ADC codes, and the
 //! firmware's window watchdog.
 //!
@@ -31,7 +31,7 @@ use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::rc::Rc;
 
-use ema::sense::{Calibration, Channel, Frame, ADC_MAX_CODE};
+use ema::control::sense::{Calibration, Channel, Frame, ADC_MAX_CODE};
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 use rand::SeedableRng;
@@ -97,7 +97,7 @@ pub struct Lines {
 }
 
 /// What the bridge's switches do with the lines as they are (the core's
-/// [`ema::bridge::Drive`] is what the tick set the bridge to; this is what the plant sees).
+/// [`ema::control::bridge::Drive`] is what the tick set the bridge to; this is what the plant sees).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Switches {
     /// Enable low: all switches open.
@@ -115,15 +115,15 @@ impl Switches {
     /// The drive a bridge in `mode` with compare value `duty` out of `max_duty` produces
     /// (for replaying a recorded trace).
     #[must_use]
-    pub fn from_mode(mode: ema::bridge::Mode, duty: u16, max_duty: u16) -> Self {
+    pub fn from_mode(mode: ema::control::bridge::Mode, duty: u16, max_duty: u16) -> Self {
         let fraction = f64::from(duty.min(max_duty)) / f64::from(max_duty.max(1));
         match mode {
-            ema::bridge::Mode::Coast => Switches::Coast,
-            ema::bridge::Mode::Forward => Switches::Driven {
+            ema::control::bridge::Mode::Coast => Switches::Coast,
+            ema::control::bridge::Mode::Forward => Switches::Driven {
                 forward: true,
                 fraction,
             },
-            ema::bridge::Mode::Reverse => Switches::Driven {
+            ema::control::bridge::Mode::Reverse => Switches::Driven {
                 forward: false,
                 fraction,
             },
@@ -454,12 +454,12 @@ impl Default for Adc {
 }
 
 impl Adc {
-    /// A typical converter: 12 bits, the board's noise ([`ema::sense::NOISE_RMS_CODES`],
+    /// A typical converter: 12 bits, the board's noise ([`ema::control::sense::NOISE_RMS_CODES`],
     /// 1.5 codes RMS) on every channel, one sample of delay, seed 1.
     #[must_use]
     pub fn typical() -> Self {
         let noise = ChannelError {
-            noise_rms_code: f64::from(ema::sense::NOISE_RMS_CODES),
+            noise_rms_code: f64::from(ema::control::sense::NOISE_RMS_CODES),
             ..ChannelError::default()
         };
         Self {
@@ -587,7 +587,7 @@ impl Converter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ema::bridge::{HBridge, Mode};
+    use ema::control::bridge::{HBridge, Mode};
 
     #[test]
     fn the_core_bridge_drives_the_mock_lines() {
@@ -625,7 +625,10 @@ mod tests {
                 ch.gain_error.abs() <= 0.005 && ch.offset_code.abs() <= 2.0,
                 "{ch:?}"
             );
-            assert_eq!(ch.noise_rms_code, f64::from(ema::sense::NOISE_RMS_CODES));
+            assert_eq!(
+                ch.noise_rms_code,
+                f64::from(ema::control::sense::NOISE_RMS_CODES)
+            );
         }
         assert_ne!(adc.position, adc.current);
         // Without noise, a reading held on the reference puts the armature at the
@@ -692,7 +695,7 @@ mod tests {
         assert!((f64::from(m.vbus_v) - 150.0).abs() <= 0.5 * 225.0 / 4096.0 + 1e-4);
         assert_eq!(
             f,
-            cal.frame(&ema::sense::Measurement {
+            cal.frame(&ema::control::sense::Measurement {
                 x_m: 2e-3,
                 i_a: 6.0,
                 vbus_v: 150.0

@@ -22,10 +22,10 @@
 //! the firmware's does. Between two samples it is the only protection: the sampled trip
 //! sees the current once a period.
 
-use ema::bridge::{Drive, HBridge, Mode};
+use ema::control::bridge::{Drive, HBridge, Mode};
+use ema::control::sense::Measurement;
+use ema::control::supervisor::Fault;
 use ema::guard::{self, End, Start};
-use ema::sense::Measurement;
-use ema::supervisor::Fault;
 use serde::{Deserialize, Serialize};
 
 use crate::hal::{self, Supply, Switches};
@@ -134,14 +134,14 @@ pub fn run(scenario: &Scenario) -> Result<Run, Error> {
 }
 
 /// What [`run_with`] records for golden traces: every tick's frame, set point and outputs
-/// in the `ema::trace` format; a latched fault is re-armed at the next tick when
+/// in the `ema::control::trace` format; a latched fault is re-armed at the next tick when
 /// `rearm_after_fault` (so that a trace keeps exercising the whole path).
 #[derive(Debug, Default)]
 pub struct Recording {
     /// Re-arm the controller at the tick after a latched fault.
     pub rearm_after_fault: bool,
     /// The records, one per tick.
-    pub records: Vec<ema::trace::Record>,
+    pub records: Vec<ema::control::trace::Record>,
 }
 
 /// As [`run`], recording every tick into `recording` when given.
@@ -267,7 +267,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
                                 None => config.tick(ctl, bridge, &frame, r as f32),
                                 Some(rec) => {
                                     let rearm = rec.rearm_after_fault && last.fault.is_some();
-                                    let (status, record) = ema::trace::tick_record(
+                                    let (status, record) = ema::control::trace::tick_record(
                                         &config, ctl, bridge, &frame, r as f32, rearm,
                                     );
                                     rec.records.push(record);
@@ -719,7 +719,7 @@ fn count(x: f64) -> u32 {
 
 /// Serialises a bridge mode as `coast`, `forward` or `reverse`.
 pub mod mode_name {
-    use ema::bridge::Mode;
+    use ema::control::bridge::Mode;
     use serde::{Deserialize, Deserializer, Serializer};
 
     /// Serde serialiser.
@@ -745,7 +745,7 @@ pub mod mode_name {
 
 /// Serialises an optional fault as its name (`over_current`), or an empty string.
 pub mod fault_name {
-    use ema::supervisor::Fault;
+    use ema::control::supervisor::Fault;
     use serde::{Deserialize, Deserializer, Serializer};
 
     /// Serde serialiser.

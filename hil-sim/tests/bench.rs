@@ -9,8 +9,8 @@ mod rig;
 use std::thread;
 use std::time::Duration;
 
+use ema::control::supervisor::Fault;
 use ema::protocol::{Command, Message, Mode, Refusal, Reply, Source, Value};
-use ema::supervisor::Fault;
 use hil_sim::bench::board::{Injection, Options};
 use hil_sim::bench::cli::{self, CaptureArgs};
 use rig::Rig;
@@ -278,7 +278,7 @@ fn a_driver_fault_on_the_break_input_holds_the_bridge_off_until_it_is_gone_and_c
 
 /// Ticks of the product's board in `s` seconds.
 fn ticks_in(s: f64) -> u64 {
-    (s * f64::from(ema::actuator::Actuator::PRODUCT.board.rate_hz)) as u64
+    (s * f64::from(ema::control::actuator::Actuator::PRODUCT.board.rate_hz)) as u64
 }
 
 /// In real time, with the link's default timeout (0.5 s): the host tool's heartbeat keeps

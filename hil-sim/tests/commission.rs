@@ -16,7 +16,7 @@
 #[path = "common/rig.rs"]
 mod rig;
 
-use ema::actuator::Actuator;
+use ema::control::actuator::Actuator;
 use ema::protocol::{Command, Commissioned, Message, Mode, Refusal, Reply};
 use hil_sim::bench::board::{Injection, Options};
 use hil_sim::bench::cli::{self, CommissionArgs};
@@ -346,7 +346,7 @@ fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
     assert_eq!(file.coil.resistance_ohm, got.resistance.ohm);
     // Each inductance as measured, or moved by the same factor at most 5 % to keep the
     // iron's reluctance positive (the head says how much).
-    let ema::actuator::Magnetics::Inductance { open_h, closed_h } = file.magnetics else {
+    let ema::control::actuator::Magnetics::Inductance { open_h, closed_h } = file.magnetics else {
         panic!("{:?}", file.magnetics)
     };
     let moved = closed_h / got.inductance.closed_h;
@@ -425,7 +425,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     assert_eq!(board.coil.resistance_ohm, got.resistance.ohm);
     assert!(matches!(
         board.magnetics,
-        ema::actuator::Magnetics::Geometry { .. }
+        ema::control::actuator::Magnetics::Geometry { .. }
     ));
     let (b, m) = (
         board.time_scales().unwrap(),

@@ -19,7 +19,7 @@
 //! [`protocol::decode`] run on the host over the same bytes; the board's answers must be
 //! those, in order, with only rejections left out.
 
-use ema::actuator::Actuator;
+use ema::control::actuator::Actuator;
 use ema::protocol::{
     self, Command, FrameError, Framer, Message, Request, Trigger, Value, CRC, CRC_LEN, MAX_FRAME,
     VERSION,

@@ -12,8 +12,9 @@
 //! expected).
 #![allow(dead_code)]
 
-use ema::actuator::Actuator;
-use ema::bridge::{HBridge, Mode as BridgeMode};
+use ema::control::actuator::Actuator;
+use ema::control::bridge::{HBridge, Mode as BridgeMode};
+use ema::control::supervisor::Fault;
 use ema::device::{Boot, Controller, Dispatcher, Inputs, IsrEnds, MainEnds, Storage};
 use ema::guard::{End, Start};
 use ema::params::{Board, Params};
@@ -21,7 +22,6 @@ use ema::protocol::{
     self, Build, CaptureState, Command, FrameError, Framer, LoadError, Message, Mode, Refusal,
     Reply, Request, Sample, Signal, Source, Trigger, Value, MAX_FRAME,
 };
-use ema::supervisor::Fault;
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 

@@ -28,8 +28,9 @@ use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use ema::actuator::Actuator;
-use ema::bridge::HBridge;
+use ema::control::actuator::Actuator;
+use ema::control::bridge::HBridge;
+use ema::control::supervisor::Fault;
 use ema::device::{
     self, Action, Boot, Controller, Dispatcher, Inputs, Queues, Storage, Ticked, CAPTURE_CAPACITY,
 };
@@ -37,7 +38,6 @@ use ema::guard::{End, Start};
 use ema::params::{Board, Params};
 use ema::protocol::{self, Build, LoadError, Mode, Sample, StoreError};
 use ema::store::{ReadOnly, Store};
-use ema::supervisor::Fault;
 
 use super::flash::{Flash, PAGE, PAGES};
 use crate::hal::{self, Adc, Converter, Lines, Pin, Pwm};

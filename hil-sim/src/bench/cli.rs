@@ -23,8 +23,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, ensure, Context};
 use clap::{Parser, Subcommand};
-use ema::actuator::{Actuator, Magnetics};
 use ema::commission::{self, Report};
+use ema::control::actuator::{Actuator, Magnetics};
 use ema::params::{self, Kind, Params};
 use ema::protocol::{
     Build, CaptureState, Command, Commissioned, LoadError, Message, Mode, Reply, Signal, Source,
@@ -919,7 +919,7 @@ pub fn commissioned_params(
 fn commissioned_sets(
     board: &Actuator,
     measured: &Actuator,
-    tuning: &ema::actuator::Tuning,
+    tuning: &ema::control::actuator::Tuning,
 ) -> anyhow::Result<Vec<(&'static str, Value)>> {
     let mut sets: Vec<(&str, Value)> = commissioned_params(board, measured)?
         .into_iter()
@@ -958,7 +958,7 @@ fn apply_commissioned<P: Port>(
     link: &mut Link<P>,
     board: &Actuator,
     measured: &Actuator,
-    tuning: &ema::actuator::Tuning,
+    tuning: &ema::control::actuator::Tuning,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
     let sets = commissioned_sets(board, measured, tuning)?;
@@ -1183,7 +1183,7 @@ pub fn console<P: Port>(
 /// The file does not serialise or does not validate (the board measured values no
 /// actuator can have).
 pub fn actuator_file(
-    file: &ema::actuator::Actuator,
+    file: &ema::control::actuator::Actuator,
     report: &Report,
     mechanics: Option<&Mechanics>,
 ) -> anyhow::Result<String> {
@@ -1884,7 +1884,7 @@ mod tests {
     fn two_measured_inductances_reach_a_geometry_board_as_its_sides_and_iron() {
         let board = Actuator::PRODUCT;
         let nominal = board.plant().unwrap();
-        let at = |p: &ema::model::Plant, x: f32| p.magnetics.inductance_h(p.gap_m(x));
+        let at = |p: &ema::control::model::Plant, x: f32| p.magnetics.inductance_h(p.gap_m(x));
         let stroke = board.mechanics.stroke_m;
         let measured = Actuator {
             magnetics: Magnetics::Inductance {

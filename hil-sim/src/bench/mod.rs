@@ -65,9 +65,9 @@ pub mod cli;
 pub mod flash;
 pub mod link;
 
+use ema::control::supervisor::Fault;
 use ema::params::Params;
 use ema::protocol::{Chunk, Invalid, LoadError, Reason, Refusal, Sample, Source};
-use ema::supervisor::Fault;
 
 use crate::metrics::{self, Metrics};
 use crate::scenario::{Initial, Reference};
@@ -338,7 +338,7 @@ pub fn prediction_samples(run: &Run, capture: &Capture, at_s: f64, rate_hz: f64)
                 r_m: last.r_shaped_m as f32,
                 x_m: mean(&|p| p.x_meas_m as f32),
                 v_mps: last.v_est_mps as f32,
-                i_a: ema::math::sqrt(mean(&|p| {
+                i_a: ema::control::math::sqrt(mean(&|p| {
                     let i = p.i_meas_a as f32;
                     i * i
                 }))

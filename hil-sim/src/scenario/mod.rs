@@ -2,9 +2,9 @@
 //! reference and duration. Every type here is serde-(de)serializable with unit-carrying
 //! field names, ready for scenario files.
 
-use ema::actuator::Actuator;
+use ema::control::actuator::Actuator;
+use ema::control::law;
 use ema::control::Settings;
-use ema::law;
 use serde::{Deserialize, Serialize};
 
 use crate::hal::{self, Supply};
@@ -239,7 +239,7 @@ impl Scenario {
     }
 
     /// The product's realistic default at an ISR rate of `rate_hz` on a `supply_v`
-    /// supply: the product's actuator ([`ema::actuator::Actuator::PRODUCT`], the physical
+    /// supply: the product's actuator ([`ema::control::actuator::Actuator::PRODUCT`], the physical
     /// convention) with every setting derived from it (the practical law, extended-state
     /// observer, one sample of measurement delay, reference shaping, every fault
     /// detector), judged as [`crate::actuator::scenario`] judges any actuator (converter
@@ -594,7 +594,7 @@ mod tests {
     #[test]
     fn draws_stay_within_the_controller_bounds() {
         use rand::SeedableRng;
-        let nominal = ema::model::Plant::paper();
+        let nominal = ema::control::model::Plant::paper();
         let env = nominal.envelope().unwrap();
         let u = Uncertainty::default();
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
@@ -641,7 +641,7 @@ mod tests {
             rectangular_probability: f64::NAN,
         };
         assert!(bad.validate().is_err());
-        let mut nominal = ema::model::Plant::paper();
+        let mut nominal = ema::control::model::Plant::paper();
         nominal.bounds.s_hi_m2 = nominal.bounds.s_lo_m2;
         let mut rng = rand_pcg::Pcg64::seed_from_u64(0);
         let p = bad.draw(&nominal, &mut rng);
@@ -655,7 +655,7 @@ mod tests {
         let sc = Scenario::paper(20_000.0).with_sensors(Sensors::Adc(Adc::default()));
         sc.validate().unwrap();
         let mut board = sc.clone();
-        board.controller.sense = ema::sense::Calibration::board();
+        board.controller.sense = ema::control::sense::Calibration::board();
         assert_eq!(
             board.validate().unwrap_err().name(),
             "controller.sense.vbus.scale"

@@ -9,7 +9,7 @@
 //!    refuses it. The actuator is then written as a Rust constant to
 //!    `$OUT_DIR/actuator.rs`, which the firmware's `board.rs` includes; the firmware
 //!    derives its settings from it at start, bit for bit as here (f32 only).
-//! 2. **The build's identity.** `EMA_BUILD_ID` (for `ema::protocol::Build::THIS`, which
+//! 2. **The build's identity.** `EMA_BUILD_ID` (for `ema::device::protocol::Build::THIS`, which
 //!    the board reports in its status): the commit the sources are at, `git rev-parse
 //!    --short=12 HEAD`; `unknown` outside a repository.
 //! 3. **Link scripts.** For the thumb builds, puts `memory.x` on the linker search path

@@ -23,9 +23,9 @@
 //! | [`control::law`] | the control laws: the paper's law and the practical variants |
 //! | [`control::supervisor`] | limits, latched faults, safe state |
 //! | [`control::bridge`] | H-bridge over `embedded-hal` 1.0 PWM and pins |
-//! | [`commission`] | measuring the actuator on the board, loop open: the coil's resistance from two voltage steps, its inductance at both end stops from step responses, the position sensor's readings there |
+//! | [`device::commission`] | measuring the actuator on the board, loop open: the coil's resistance from two voltage steps, its inductance at both end stops from step responses, the position sensor's readings there |
 //! | [`control`] | the configuration, the state and the one `tick` |
-//! | [`guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
+//! | [`device::guard`] | around the tick: deadlines, the hardware trip flag, feeding the watchdog |
 //! | [`control::trace`] | golden traces: ticks recorded on the host, replayed bit for bit on the target |
 //!
 //! Around the tick, the board's application, shared by the firmware and the virtual board:
@@ -33,11 +33,11 @@
 //! | module | concept |
 //! |---|---|
 //! | [`device`] | states (disarmed, armed, moving, commissioning, fault), the commands' dispatch, telemetry and capture around the tick |
-//! | [`protocol`] | the bench link's messages (postcard) and frames (COBS and a CRC) |
-//! | [`params`] | every parameter by name, validated as at build time |
-//! | [`store`] | parameters in flash, power-fail safe, with a version and a CRC |
-//! | [`analog`] | the optional analog set point (0-10 V or 4-20 mA, broken wire as a fault) |
-//! | [`liveness`] | the link's timeout and the main loop's deadline: an armed board never outlives its host |
+//! | [`device::protocol`] | the bench link's messages (postcard) and frames (COBS and a CRC) |
+//! | [`device::params`] | every parameter by name, validated as at build time |
+//! | [`device::store`] | parameters in flash, power-fail safe, with a version and a CRC |
+//! | [`device::analog`] | the optional analog set point (0-10 V or 4-20 mA, broken wire as a fault) |
+//! | [`device::liveness`] | the link's timeout and the main loop's deadline: an armed board never outlives its host |
 //!
 //! ## What the paper gets wrong or leaves loose, and what the code does
 //!
@@ -120,12 +120,5 @@
     )
 )]
 
-pub mod analog;
-pub mod commission;
 pub mod control;
 pub mod device;
-pub mod guard;
-pub mod liveness;
-pub mod params;
-pub mod protocol;
-pub mod store;

@@ -1,4 +1,4 @@
-//! The guard (`ema::guard`) as the firmware's control interrupt runs it, on the Cortex-M4F.
+//! The guard (`ema::device::guard`) as the firmware's control interrupt runs it, on the Cortex-M4F.
 //!
 //! SysTick fires at the control rate (20 kHz) and runs the product's tick (the practical
 //! law, closed loop with the plant stand-in) through `guard::Config::run`, with what the
@@ -40,7 +40,7 @@ use cortex_m_rt::{entry, exception};
 use ema::control::bridge::Mode;
 use ema::control::supervisor::Fault;
 use ema::control::{Config, Settings, State};
-use ema::guard::{self, End, Start, Watchdog, WATCHDOG_QUIET_PERIODS};
+use ema::device::guard::{self, End, Start, Watchdog, WATCHDOG_QUIET_PERIODS};
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {

@@ -1,5 +1,5 @@
-use ema::commission::{Identification, Plan, Step};
 use ema::control::bridge::HBridge;
+use ema::device::commission::{Identification, Plan, Step};
 use hil_sim::bench::board::scenario;
 use hil_sim::hal::{self};
 use hil_sim::scenario::Sensors;

@@ -1,4 +1,4 @@
-//! The board's commissioning routine (`ema::commission`) against simulated actuators: the
+//! The board's commissioning routine (`ema::device::commission`) against simulated actuators: the
 //! core's identification ticking as the control interrupt runs it (convert, identify,
 //! drive the board's bridge on the mock pins), the converter with its typical noise,
 //! quantisation and delay, the plant's RK4 with its end stops. The routine starts from the
@@ -34,9 +34,9 @@
 //! and the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).
 
-use ema::commission::{Abort, Identification, Plan, Report, Step};
 use ema::control::actuator::Actuator;
 use ema::control::bridge::HBridge;
+use ema::device::commission::{Abort, Identification, Plan, Report, Step};
 use rand::Rng;
 
 use crate::bench::board::scenario;
@@ -1002,7 +1002,7 @@ pub const STOP_INDUCTANCE_CLASS: f64 = 0.01;
 /// growth: on 1000 drawn 12 V solenoids, whose surface is constant, a growth kept at
 /// three deviations read 4 springs more than 5 % off (up to 8.4 %), at five one to
 /// three in a thousand (up to 5.4 %, on two sets of draws; with the open stop's probe
-/// twice as long, [`ema::commission::PROBE_READINGS`], none and one, 5.2 %). A growth
+/// twice as long, [`ema::device::commission::PROBE_READINGS`], none and one, 5.2 %). A growth
 /// that matters is still kept: a pole whose sides grow by 0.3 of the gap, 14 % off the
 /// stops' line, is read within 2 % of its growth (the tests).
 pub const GROWTH_SIGNIFICANCE: f64 = 5.0;

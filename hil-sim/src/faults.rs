@@ -14,7 +14,7 @@
 //! current sensor where the current changes fastest. Frozen in a steady phase, a current
 //! reading is found only once the loop has wound up against it.
 //!
-//! Two cases exercise the firmware's guard ([`ema::guard`]) and window watchdog
+//! Two cases exercise the firmware's guard ([`ema::device::guard`]) and window watchdog
 //! ([`crate::hal::Watchdog`]): four missed interrupts are seen by the guard when the
 //! interrupt runs again (the gap is five periods), and an interrupt that stops for good,
 //! while the coil is driven, is ended by the watchdog, which coasts the bridge at the first

@@ -22,7 +22,7 @@
 //!
 //! The [`Supply`] is a source `V_s` behind an internal resistance: `Vbus = V_s - R_int I_bus`.
 //!
-//! The [`Watchdog`] is fed by the ticks the guard ([`ema::guard`]) finds on time; when
+//! The [`Watchdog`] is fed by the ticks the guard ([`ema::device::guard`]) finds on time; when
 //! nothing feeds it for its early-wakeup time, it coasts the bridge, as the firmware's
 //! window-watchdog interrupt does.
 
@@ -259,7 +259,7 @@ pub const REFERENCE_APB1_HZ: u32 = 42_000_000;
 
 /// The firmware's window watchdog as the loop sees it: fed by on-time ticks, it coasts
 /// the bridge at the latest moment its early-wakeup interrupt can come after the last
-/// feed ([`ema::guard::Watchdog::early_wakeup_max_ns`]), checked at each sample instant.
+/// feed ([`ema::device::guard::Watchdog::early_wakeup_max_ns`]), checked at each sample instant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Watchdog {
     bite_after_ns: u64,
@@ -268,15 +268,15 @@ pub struct Watchdog {
 
 impl Watchdog {
     /// The reference board's window watchdog for ticks at `rate_hz`: quiet for
-    /// [`ema::guard::WATCHDOG_QUIET_PERIODS`] periods after a feed (the firmware's
+    /// [`ema::device::guard::WATCHDOG_QUIET_PERIODS`] periods after a feed (the firmware's
     /// choice, `board::WINDOW_WATCHDOG`), fed at time 0.
     #[must_use]
     pub fn reference(rate_hz: f64) -> Self {
-        let quiet_ns = f64::from(ema::guard::WATCHDOG_QUIET_PERIODS) * 1e9 / rate_hz;
+        let quiet_ns = f64::from(ema::device::guard::WATCHDOG_QUIET_PERIODS) * 1e9 / rate_hz;
         // Bounded to [0, u32::MAX] before the cast.
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let quiet_ns = quiet_ns.round().clamp(0.0, f64::from(u32::MAX)) as u32;
-        let w = ema::guard::Watchdog::at_least(REFERENCE_APB1_HZ, quiet_ns);
+        let w = ema::device::guard::Watchdog::at_least(REFERENCE_APB1_HZ, quiet_ns);
         Self {
             bite_after_ns: u64::from(w.early_wakeup_max_ns()),
             last_feed_ns: 0,

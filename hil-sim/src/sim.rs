@@ -6,7 +6,7 @@
 //! `[t_k, t_k+1)` (zero-order hold, no computation delay; a converter delay is set in the
 //! sensor model).
 //!
-//! Every tick runs through the firmware's guard ([`ema::guard::Config::run`]) at the
+//! Every tick runs through the firmware's guard ([`ema::device::guard::Config::run`]) at the
 //! simulated time `t_k` in nanoseconds, and the ticks it finds on time feed a model of the
 //! firmware's window watchdog ([`hal::Watchdog`]). A missed deadline
 //! ([`Injected::MissedDeadlines`]) is a tick that does not run: the bridge keeps its last
@@ -25,7 +25,7 @@
 use ema::control::bridge::{Drive, HBridge, Mode};
 use ema::control::sense::Measurement;
 use ema::control::supervisor::Fault;
-use ema::guard::{self, End, Start};
+use ema::device::guard::{self, End, Start};
 use serde::{Deserialize, Serialize};
 
 use crate::hal::{self, Supply, Switches};

@@ -1,5 +1,5 @@
 //! Commissioning on the virtual board, through the host tool's own serial path: the
-//! board's identification (`ema::commission`, run by the board's interrupt half) against
+//! board's identification (`ema::device::commission`, run by the board's interrupt half) against
 //! the simulated coil with the converter's typical noise, its delay and quantisation.
 //!
 //! Coils drawn up to 30 % either side of the file's resistance (a fixed, printed seed) are
@@ -17,7 +17,7 @@
 mod rig;
 
 use ema::control::actuator::Actuator;
-use ema::protocol::{Command, Commissioned, Message, Mode, Refusal, Reply};
+use ema::device::protocol::{Command, Commissioned, Message, Mode, Refusal, Reply};
 use hil_sim::bench::board::{Injection, Options};
 use hil_sim::bench::cli::{self, CommissionArgs};
 use rand::{Rng, SeedableRng};
@@ -35,7 +35,7 @@ const ACTUATORS: usize = 6;
 /// What this test adds to the shared rig.
 trait Commissioning {
     fn coil(&mut self, r_ohm: f64);
-    fn commission(&mut self) -> anyhow::Result<ema::commission::Report>;
+    fn commission(&mut self) -> anyhow::Result<ema::device::commission::Report>;
     fn commissioned(&mut self) -> Commissioned;
 }
 
@@ -48,7 +48,7 @@ impl Commissioning for Rig {
         self.status();
     }
 
-    fn commission(&mut self) -> anyhow::Result<ema::commission::Report> {
+    fn commission(&mut self) -> anyhow::Result<ema::device::commission::Report> {
         let args = CommissionArgs {
             apply: false,
             tune: false,
@@ -116,7 +116,7 @@ fn a_coil_far_below_its_file_stops_above_the_rating_and_a_disarm_stops_it() {
     rig.link.done(Command::Disarm).unwrap();
     assert_eq!(
         rig.commissioned(),
-        Commissioned::Aborted(ema::commission::Abort::Stopped)
+        Commissioned::Aborted(ema::device::commission::Abort::Stopped)
     );
     assert_eq!(rig.status().mode, Mode::Disarmed);
 
@@ -417,7 +417,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     // the measured circuit in the board's own form (geometry) and the tuning chosen.
     let status = rig.status();
     assert!(
-        matches!(status.params, ema::protocol::Source::Stored),
+        matches!(status.params, ema::device::protocol::Source::Stored),
         "{:?}",
         status.params
     );

@@ -1,4 +1,4 @@
-//! The board's commissioning routine (`ema::commission`) on every actuator of the family,
+//! The board's commissioning routine (`ema::device::commission`) on every actuator of the family,
 //! against its simulated plant ([`hil_sim::commissioning`]): the file's plant here (the
 //! drawn plants are in `tests/commission.rs`, through the host tool and the virtual board,
 //! and in `hil-sim commission`).
@@ -112,7 +112,7 @@ fn a_valve_that_snaps_onto_its_stop_in_a_step_s_wait_is_driven_within_its_rating
             panic!("seed {seed}: commissioning stopped: {:?}", o.report)
         };
         assert!(r.abs() < 0.02, "seed {seed}: {o:?}");
-        let full = f64::from(ema::commission::FULL_SHARE) + 0.01;
+        let full = f64::from(ema::device::commission::FULL_SHARE) + 0.01;
         assert!(o.peak_a <= full * rated, "seed {seed}: {o:?}");
     }
 }
@@ -181,7 +181,7 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
 struct Drawn {
     draw: hil_sim::commissioning::Draw,
     plant: hil_sim::plant::Params,
-    report: ema::commission::Report,
+    report: ema::device::commission::Report,
     mechanics: Option<hil_sim::commissioning::Mechanics>,
     faults: Vec<&'static str>,
 }
@@ -645,8 +645,8 @@ fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
                 Some((f * stroke, l, 0.005 * l))
             })
             .collect();
-        let report = ema::commission::Report {
-            inductance: ema::commission::Inductance {
+        let report = ema::device::commission::Report {
+            inductance: ema::device::commission::Inductance {
                 open_h: (at(0.0) * 1.002) as f32,
                 closed_h: (at(stroke) * 1.002) as f32,
             },
@@ -686,12 +686,12 @@ fn a_hold_that_limit_cycles_reads_the_spring_with_the_armature_s_inertia_taken_o
     let plant = hil_sim::commissioning::true_plant(&a, None).unwrap();
     let stroke = plant.stroke_m;
     let at = |x: f64| plant.inductance_h(plant.gap_m(x));
-    let report = ema::commission::Report {
-        inductance: ema::commission::Inductance {
+    let report = ema::device::commission::Report {
+        inductance: ema::device::commission::Inductance {
             open_h: at(0.0) as f32,
             closed_h: at(stroke) as f32,
         },
-        ends: ema::commission::Ends {
+        ends: ema::device::commission::Ends {
             open_m: 0.0,
             closed_m: stroke as f32,
             spread_m: 0.0,

@@ -20,7 +20,7 @@
 //! those, in order, with only rejections left out.
 
 use ema::control::actuator::Actuator;
-use ema::protocol::{
+use ema::device::protocol::{
     self, Command, FrameError, Framer, Message, Request, Trigger, Value, CRC, CRC_LEN, MAX_FRAME,
     VERSION,
 };

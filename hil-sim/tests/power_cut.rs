@@ -9,9 +9,9 @@
 
 use ema::control::actuator::Actuator;
 use ema::device::boot;
-use ema::params::{Board, Params};
-use ema::protocol::Source;
-use ema::store::Store;
+use ema::device::params::{Board, Params};
+use ema::device::protocol::Source;
+use ema::device::store::Store;
 use hil_sim::bench::flash::{Flash, PAGE, PAGES};
 
 const BOARD: Board = Board {

@@ -16,7 +16,7 @@ use core::hint::black_box;
 
 use ema::control::supervisor::Fault;
 use ema::control::trace::CASES;
-use ema::guard::{self, End, Start};
+use ema::device::guard::{self, End, Start};
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo<'_>) -> ! {

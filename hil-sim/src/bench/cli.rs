@@ -23,10 +23,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, ensure, Context};
 use clap::{Parser, Subcommand};
-use ema::commission::{self, Report};
 use ema::control::actuator::{Actuator, Magnetics};
-use ema::params::{self, Kind, Params};
-use ema::protocol::{
+use ema::device::commission::{self, Report};
+use ema::device::params::{self, Kind, Params};
+use ema::device::protocol::{
     Build, CaptureState, Command, Commissioned, LoadError, Message, Mode, Reply, Signal, Source,
     Status, Trigger, Value, CHUNK_SAMPLES,
 };
@@ -39,7 +39,7 @@ use crate::commissioning::{Holds, Mechanics};
 use crate::report::{self, sig, Figure, Panel, Series, Table};
 
 /// The link's speed \[baud\]: one definition, the core's, which the firmware's UART uses.
-pub use ema::protocol::BAUD;
+pub use ema::device::protocol::BAUD;
 
 /// Host tool for a board on a bench (or the virtual board).
 #[derive(Debug, Parser)]
@@ -611,7 +611,7 @@ fn measure_mechanics<P: Port>(
         probe.half_ticks
     )?;
     let mut probes: [Vec<Vec<crate::commissioning::ProbeSample>>; crate::actuator::SEQUENCE.len()];
-    let stored = matches!(status(link)?.params, ema::protocol::Source::Stored);
+    let stored = matches!(status(link)?.params, ema::device::protocol::Source::Stored);
     let mut attempt = 0;
     let holds = loop {
         let tuning = crate::commissioning::hold_tuning(&m, attempt)?;
@@ -1666,7 +1666,8 @@ pub fn capture<P: Port>(
         .without("energy [J]");
     let metrics_csv = a.out.join("metrics.csv");
     metrics.write_csv(&metrics_csv)?;
-    let pts = |f: &dyn Fn(&ema::protocol::Sample) -> f64, v: &[ema::protocol::Sample]| {
+    let pts = |f: &dyn Fn(&ema::device::protocol::Sample) -> f64,
+               v: &[ema::device::protocol::Sample]| {
         v.iter()
             .enumerate()
             .map(|(k, s)| (capture.t_s(k, rate), f(s)))
@@ -1808,11 +1809,11 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     // As fast as it can, the board's ticks outrun a host's heartbeat paced in real time:
     // its link timeout is off then (see `Options::link`).
     let link = if a.speed > 0.0 {
-        ema::liveness::Settings::default()
+        ema::device::liveness::Settings::default()
     } else {
-        ema::liveness::Settings {
+        ema::device::liveness::Settings {
             timeout_s: 0.0,
-            ..ema::liveness::Settings::default()
+            ..ema::device::liveness::Settings::default()
         }
     };
     let mut board = VirtualBoard::new(Options {

@@ -109,8 +109,8 @@ impl InductanceProbe {
     /// The board's command that starts it.
     #[must_use]
     #[allow(clippy::cast_possible_truncation)]
-    pub fn command(&self) -> ema::protocol::Command<'static> {
-        ema::protocol::Command::Probe {
+    pub fn command(&self) -> ema::device::protocol::Command<'static> {
+        ema::device::protocol::Command::Probe {
             amplitude_a: self.amplitude_a as f32,
             half_ticks: self.half_ticks,
             cycles: self.cycles,

@@ -9,14 +9,14 @@ use cortex_m::peripheral::{NVIC, SCB};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
 use ema::control::supervisor::Fault;
+use ema::device::guard::{self, End, Start};
+use ema::device::params::{Board, Params};
+use ema::device::protocol::{Build, Sample, Source};
+use ema::device::store::{self, Store};
 use ema::device::{
     Action, Controller, Dispatcher, Inputs, IsrEnds, MainEnds, Queues, ANSWER_SLOTS,
     CAPTURE_CAPACITY, ORDER_SLOTS, SAMPLE_SLOTS,
 };
-use ema::guard::{self, End, Start};
-use ema::params::{Board, Params};
-use ema::protocol::{Build, Sample, Source};
-use ema::store::{self, Store};
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 use stm32f4xx_hal::gpio::{Alternate, Pin};
@@ -533,7 +533,7 @@ fn bring_up(
         "law {=str}, rate {=f32} Hz; disarmed: the bench link arms and moves ({=u32} baud on USART2)",
         boot.install.control.law().name(),
         rate_hz,
-        ema::protocol::BAUD
+        ema::device::protocol::BAUD
     );
 
     // SAFETY: `start` gets here at most once (`pac::Peripherals::take` above succeeds only
@@ -607,7 +607,7 @@ fn bring_up(
 }
 
 /// Logs where the parameters came from and what the save this start made did.
-fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::protocol::StoreError>>) {
+fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::device::protocol::StoreError>>) {
     match saved {
         None => defmt::info!("parameters: {}", From(source)),
         Some(Ok(())) => defmt::info!("parameters saved; in use: {}", From(source)),

@@ -9,7 +9,7 @@
 //! | position sensor | PC0 | ADC123_IN10 | the span within the range, room left at both ends for the sensor's tolerance ([`ema::control::actuator::Actuator::calibration`]) |
 //! | coil current | PC1 | ADC123_IN11 | bidirectional, mid-scale at 0 A ([`ema::control::sense::CURRENT_A_PER_CODE`]) |
 //! | bus voltage | PC2 | ADC123_IN12 | 22:1 divider ([`ema::control::sense::VBUS_V_PER_CODE`]) |
-//! | bench link TX | PA2 | USART2_TX (AF7), DMA1 stream 6 | [`ema::protocol::BAUD`] 8N1, 3.3 V levels, to any USB-serial adapter's RX |
+//! | bench link TX | PA2 | USART2_TX (AF7), DMA1 stream 6 | [`ema::device::protocol::BAUD`] 8N1, 3.3 V levels, to any USB-serial adapter's RX |
 //! | bench link RX | PA3 | USART2_RX (AF7), DMA1 stream 5 | from the adapter's TX; the internal pull-up holds the line idle when nothing is connected |
 //! | crystal | PH0/PH1 | HSE | 8 MHz |
 //! | debug | PA13/PA14 | SWD | probe-rs, defmt over RTT |
@@ -78,7 +78,7 @@ use ema::control::config;
 use ema::control::model::Convention;
 use ema::control::sense::{Frame, CURRENT_ZERO_CODE};
 use ema::control::Settings;
-use ema::guard::{Watchdog, WATCHDOG_QUIET_PERIODS};
+use ema::device::guard::{Watchdog, WATCHDOG_QUIET_PERIODS};
 
 /// The actuator this firmware is built for: the file given as `EMA_ACTUATOR` at build
 /// time (validated by `build.rs`, which fails the build with the field named), or the
@@ -137,7 +137,7 @@ pub const POSITION_CHANNEL: u8 = 10;
 /// ADC channel of the bus-voltage divider.
 pub const VBUS_CHANNEL: u8 = 12;
 /// ADC channel of the analog set-point input (PC3, ADC123_IN13): its input stage (divider
-/// for 0-10 V, shunt for 4-20 mA) is the board's, its scaling `ema::analog`'s.
+/// for 0-10 V, shunt for 4-20 mA) is the board's, its scaling `ema::device::analog`'s.
 pub const ANALOG_CHANNEL: u8 = 13;
 /// The injected sequence, in conversion order: ADC channel and what it measures; results
 /// land in JDR1 to JDR4. The one table both the set-up ([`INJECTED_SEQUENCE`],
@@ -354,7 +354,7 @@ pub const IWDG_BOOT: IwdgTimeout = IwdgTimeout::new(6, 4000);
 /// starts after them; its link-time check fails if the two disagree).
 pub const STORE_RANGE: core::ops::Range<u32> = 0x0000_4000..0x0000_C000;
 /// Size of the store's sectors \[bytes\].
-pub const STORE_SECTOR: usize = ema::store::SECTOR_BYTES;
+pub const STORE_SECTOR: usize = ema::device::store::SECTOR_BYTES;
 const _: () = assert!(
     (STORE_RANGE.end - STORE_RANGE.start) as usize == 2 * STORE_SECTOR
         && (STORE_RANGE.start as usize).is_multiple_of(STORE_SECTOR)

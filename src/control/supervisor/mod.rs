@@ -74,10 +74,10 @@ pub enum Fault {
     /// shorted wire (only with the analog set point, `setpoint.source = current_4_20ma`).
     AnalogWireBreak = 21,
     /// The host fell silent for longer than `link.timeout_s` while the board drove the
-    /// coil for it ([`crate::liveness`]).
+    /// coil for it ([`crate::device::liveness`]).
     LinkTimeout = 22,
     /// The main loop stopped checking in: the link is not served and the watchdogs are no
-    /// longer fed ([`crate::liveness`]).
+    /// longer fed ([`crate::device::liveness`]).
     MainLoopStalled = 23,
 }
 

@@ -42,7 +42,7 @@
 //! * **Moving**: armed, a move in progress (the reference shaping's).
 //! * **Commissioning** (entered from Disarmed by [`Command::Commission`], nothing
 //!   latched, sensors and bus ready): the loop open, the bridge driven by the actuator's
-//!   identification ([`crate::commission`]); it returns to Disarmed when the result is in,
+//!   identification ([`commission`]); it returns to Disarmed when the result is in,
 //!   when any order other than a status, stream or capture arrives (the bridge coasts at
 //!   once), or to Fault when a fault latches (every tick still converts and checks the
 //!   codes and the limits).
@@ -59,26 +59,33 @@
 //! the operating state, and when due, one telemetry sample and one capture sample (a copy
 //! of eight values). `tests/qemu_device.rs` counts the instructions on the Cortex-M4F.
 
+pub mod analog;
+pub mod commission;
+pub mod guard;
+pub mod liveness;
+pub mod params;
+pub mod protocol;
+pub mod store;
+
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use crate::analog::{self, Source as SetpointSource};
-use crate::commission;
 use crate::control::bridge::{HBridge, Mode as BridgeMode};
 use crate::control::math;
 use crate::control::sense::{Frame, Measurement};
 use crate::control::supervisor::{Fault, FAULT_COUNT};
 use crate::control::{self, Status as TickStatus};
-use crate::guard::{self, End, Start};
-use crate::liveness::{self, Pulse};
-use crate::params::{Board, Params, Refused};
-use crate::protocol::{
-    self, Build, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid,
-    LoadError, Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status,
-    StoreError, Telemetry, Trigger, MAX_FRAME,
+use analog::Source as SetpointSource;
+use guard::{End, Start};
+use liveness::Pulse;
+use params::{Board, Params, Refused};
+use protocol::{
+    Build, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid, LoadError,
+    Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status, StoreError,
+    Telemetry, Trigger, MAX_FRAME,
 };
-use crate::store::Store;
+use store::Store;
 
 /// Samples the firmware's capture buffer holds (at 20 kHz with a decimation of 20: 0.256 s).
 pub const CAPTURE_CAPACITY: usize = 256;

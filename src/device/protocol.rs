@@ -33,7 +33,7 @@
 //! came from).
 //!
 //! ```
-//! use ema::protocol::{self, Command, Request, Framer, MAX_FRAME};
+//! use ema::device::protocol::{self, Command, Request, Framer, MAX_FRAME};
 //!
 //! let mut frame = [0u8; MAX_FRAME];
 //! let n = protocol::encode(&Request { seq: 7, command: Command::Arm }, &mut frame).unwrap();
@@ -110,7 +110,7 @@ pub enum Command<'a> {
     /// The board's state ([`Reply::Status`]).
     Status,
     /// Nothing but "the host is alive" ([`Reply::Done`]): every request counts against
-    /// the link's timeout ([`crate::liveness`]); a host with nothing else to ask sends
+    /// the link's timeout ([`crate::device::liveness`]); a host with nothing else to ask sends
     /// this.
     Heartbeat,
     /// Closed loop, holding the present position. Refused while a fault is latched, a
@@ -172,7 +172,7 @@ pub enum Command<'a> {
         /// First sample.
         offset: u16,
     },
-    /// Measures the coil's resistance with the loop open (see [`crate::commission`]):
+    /// Measures the coil's resistance with the loop open (see [`crate::device::commission`]):
     /// disarmed only, with nothing latched and the sensors and bus ready. The board is
     /// [`Mode::Commissioning`] until it ends; any fault or order ends it.
     Commission,
@@ -211,7 +211,7 @@ pub enum Value {
     Number(f32),
     /// Yes or no.
     Flag(bool),
-    /// One of a parameter's named choices, by index ([`crate::params::Kind::Choice`]).
+    /// One of a parameter's named choices, by index ([`crate::device::params::Kind::Choice`]).
     Choice(u8),
 }
 
@@ -278,9 +278,9 @@ pub enum Commissioned {
     /// In progress.
     Running,
     /// Finished: the coil's resistance and the position sensor's end stops.
-    Done(crate::commission::Report),
+    Done(crate::device::commission::Report),
     /// Stopped without a result.
-    Aborted(crate::commission::Abort),
+    Aborted(crate::device::commission::Abort),
 }
 
 /// Why a request was not carried out. Nothing changed on the board.

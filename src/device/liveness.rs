@@ -7,7 +7,7 @@
 //! * **The host.** While the board drives the coil for the link (armed or moving with the
 //!   set point from the link, or commissioning), a valid request must arrive at least
 //!   every `link.timeout_s`. Any request counts; a host with nothing to ask sends
-//!   [`crate::protocol::Command::Heartbeat`], the host tool every quarter of the timeout.
+//!   [`crate::device::protocol::Command::Heartbeat`], the host tool every quarter of the timeout.
 //!   On expiry the board does what `link.on_timeout` says ([`OnTimeout`]): it disarms and
 //!   latches [`LinkTimeout`] (the default), or it holds the set point it has (a move in
 //!   progress ends at its target) and counts the timeout without latching. A
@@ -32,7 +32,7 @@
 //! [`MainLoopStalled`]: crate::control::supervisor::Fault::MainLoopStalled
 //!
 //! ```
-//! use ema::liveness::{OnTimeout, Pulse, Settings, Watch};
+//! use ema::device::liveness::{OnTimeout, Pulse, Settings, Watch};
 //!
 //! let link = Settings { timeout_s: 0.5, on_timeout: OnTimeout::Disarm };
 //! let cfg = link.build(20_000.0).unwrap();

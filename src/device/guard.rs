@@ -26,7 +26,7 @@
 //! ```
 //! use ema::control::bridge::{HBridge, Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
 //! use ema::control::{Config, Settings, State};
-//! use ema::guard::{self, End, Start};
+//! use ema::device::guard::{self, End, Start};
 //! use ema::control::sense::Measurement;
 //! use ema::control::supervisor::Fault;
 //!
@@ -193,7 +193,7 @@ pub const WATCHDOG_QUIET_PERIODS: u32 = 3;
 /// `counts` counts after a feed, the reset one count later.
 ///
 /// ```
-/// use ema::guard::Watchdog;
+/// use ema::device::guard::Watchdog;
 /// // 42 MHz APB1, quiet for 3 periods of 20 kHz: 3 counts of 97.5 us.
 /// let w = Watchdog::at_least(42_000_000, 150_000);
 /// assert_eq!(w.reload(), 0x43);

@@ -3,14 +3,14 @@
 //! 1. **The actuator the firmware is built for.** `EMA_ACTUATOR=path/to/file.toml cargo fw`
 //!    builds the firmware for that actuator file (a hand-written one or the tuned one
 //!    `hil-sim tune` writes; a relative path is taken from the workspace root); without
-//!    it, for the product's default actuator (`ema::control::actuator::Actuator::PRODUCT`). The
-//!    file is read and every setting derived here, with the control core's own code, so a
-//!    bad file fails the build with the field and its value named, exactly as `hil-sim`
+//!    it, for the product's default actuator (`ema::control::actuator::Actuator::PRODUCT`).
+//!    The file is read and every setting derived here, with the control core's own code, so
+//!    a bad file fails the build with the field and its value named, exactly as `hil-sim`
 //!    refuses it. The actuator is then written as a Rust constant to
 //!    `$OUT_DIR/actuator.rs`, which the firmware's `board.rs` includes; the firmware
 //!    derives its settings from it at start, bit for bit as here (f32 only).
-//! 2. **The build's identity.** `EMA_BUILD_ID` (for `ema::device::protocol::Build::THIS`, which
-//!    the board reports in its status): the commit the sources are at, `git rev-parse
+//! 2. **The build's identity.** `EMA_BUILD_ID` (for `ema::device::protocol::Build::THIS`,
+//!    which the board reports in its status): the commit the sources are at, `git rev-parse
 //!    --short=12 HEAD`; `unknown` outside a repository.
 //! 3. **Link scripts.** For the thumb builds, puts `memory.x` on the linker search path
 //!    (cortex-m-rt's `link.x` includes it) and links defmt's script into the firmware
@@ -102,9 +102,10 @@ fn fail(message: &str) -> ! {
     std::process::exit(1)
 }
 
-/// The actuator as a Rust expression of `ema::control::actuator::Actuator`. `{:?}` writes every
-/// `f32` in its shortest form that reads back to the same bits. The destructuring names
-/// every field, so a field added to the file format without a place here fails to build.
+/// The actuator as a Rust expression of `ema::control::actuator::Actuator`. `{:?}` writes
+/// every `f32` in its shortest form that reads back to the same bits. The destructuring
+/// names every field, so a field added to the file format without a place here fails to
+/// build.
 fn literal(a: &Actuator) -> String {
     let Actuator {
         mechanics:

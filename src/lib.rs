@@ -43,9 +43,9 @@
 //!
 //! * Force direction: as printed, the magnetic force opens the airgap. A reluctance force
 //!   closes it, and its stiffness destabilises the armature near the closed stop. Both
-//!   conventions are supported ([`control::model::Convention`]): `Physical` (the stroke coordinate,
-//!   the force closes the gap, back-EMF `-x2 x3 mu`) is the product's everywhere;
-//!   `Paper`, as printed, only reproduces the paper.
+//!   conventions are supported ([`control::model::Convention`]): `Physical` (the stroke
+//!   coordinate, the force closes the gap, back-EMF `-x2 x3 mu`) is the product's
+//!   everywhere; `Paper`, as printed, only reproduces the paper.
 //! * `mu_lo`/`mu_hi` are the exact extremes over the `rho_x` interval (the paper's formula
 //!   leaves `rho_x` unspecified); they stay correct where `mu` is not monotone.
 //! * `x3d^2 < 0` whenever `z2 > 0`: clipped to `x3d = 0`. Theorem 3's `eps` uses
@@ -57,17 +57,17 @@
 //! * Theorem 1's ball radius is a Lyapunov bound of the order of a metre, not a precision
 //!   figure; it is computed and reported as such.
 //! * Sampled at firmware rates the paper's law chatters tens of amperes. The product's law
-//!   ([`control::law::practical`], the "practical law") keeps the paper's structure (backstepping on
-//!   position and velocity on the robust design model, a sliding-mode current law built on
-//!   the inductance bounds) and redesigns each stage for a sampled, delayed, noisy loop;
-//!   the reason for each term is in its module docs.
+//!   ([`control::law::practical`], the "practical law") keeps the paper's structure
+//!   (backstepping on position and velocity on the robust design model, a sliding-mode
+//!   current law built on the inductance bounds) and redesigns each stage for a sampled,
+//!   delayed, noisy loop; the reason for each term is in its module docs.
 //!
 //! ## Guarantees
 //!
 //! * `#![no_std]` always (also in test builds of the library itself), no heap.
 //! * `f32` only. Every operation the tick uses is IEEE-exact (`+ - * /` and a correctly
-//!   rounded square root, [`control::math::sqrt`]), so the host and the Cortex-M4F compute the same
-//!   bits for the same inputs.
+//!   rounded square root, [`control::math::sqrt`]), so the host and the Cortex-M4F compute
+//!   the same bits for the same inputs.
 //! * The tick cannot fail and cannot panic: `unwrap`, `expect`, `panic!`, indexing that can
 //!   panic, unchecked casts and integer overflow are denied by lints below. Any non-finite or
 //!   implausible value becomes a latched fault and the bridge coasts.

@@ -75,7 +75,8 @@ fn the_target_check_includes_every_trace() {
     }
 }
 
-/// One reference case per law, in the order of `ema::control::law::NAMES`, each running its law.
+/// One reference case per law, in the order of `ema::control::law::NAMES`, each running its
+/// law.
 #[test]
 fn every_law_variant_has_its_case() {
     let names: Vec<&str> = CASES.iter().map(|c| c.name).collect();

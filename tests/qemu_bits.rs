@@ -1,7 +1,7 @@
-//! Bit-exactness smoke test on the Cortex-M4F: `ema::control::math::sqrt` (one `vsqrt.f32`) and the
-//! paper's law give the very bits the host computed (`tests/common/vectors.rs`, checked on
-//! the host by `tests/bits_host.rs`), and `vsqrt` agrees with `libm::sqrtf` run on the
-//! target itself over a sweep of 2^18 bit patterns of every kind.
+//! Bit-exactness smoke test on the Cortex-M4F: `ema::control::math::sqrt` (one `vsqrt.f32`)
+//! and the paper's law give the very bits the host computed (`tests/common/vectors.rs`,
+//! checked on the host by `tests/bits_host.rs`), and `vsqrt` agrees with `libm::sqrtf` run
+//! on the target itself over a sweep of 2^18 bit patterns of every kind.
 #![no_std]
 #![no_main]
 

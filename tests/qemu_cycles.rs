@@ -1,8 +1,8 @@
 //! Instructions per tick on the Cortex-M4F, for every reference case (one per law).
 //!
-//! Runs each case of `ema::control::trace::CASES` in closed loop with a small actuator model
-//! (`common::plant`) for [`TICKS`] ticks (1 mm at rest, step to 3 mm, then to 2 mm) and
-//! counts, with TIM2 under `-icount shift=0`, the instructions of
+//! Runs each case of `ema::control::trace::CASES` in closed loop with a small actuator
+//! model (`common::plant`) for [`TICKS`] ticks (1 mm at rest, step to 3 mm, then to 2 mm)
+//! and counts, with TIM2 under `-icount shift=0`, the instructions of
 //!
 //! * the whole tick (`Config::tick`: sense -> observer -> law -> supervisor -> bridge),
 //! * the law alone (`ema::control::law::Law::step` on the same inputs and state),

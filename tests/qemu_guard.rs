@@ -1,4 +1,5 @@
-//! The guard (`ema::device::guard`) as the firmware's control interrupt runs it, on the Cortex-M4F.
+//! The guard (`ema::device::guard`) as the firmware's control interrupt runs it, on the
+//! Cortex-M4F.
 //!
 //! SysTick fires at the control rate (20 kHz) and runs the product's tick (the practical
 //! law, closed loop with the plant stand-in) through `guard::Config::run`, with what the

@@ -1,8 +1,8 @@
-//! The board's commissioning routine (`ema::device::commission`) against simulated actuators: the
-//! core's identification ticking as the control interrupt runs it (convert, identify,
-//! drive the board's bridge on the mock pins), the converter with its typical noise,
-//! quantisation and delay, the plant's RK4 with its end stops. The routine starts from the
-//! file; the plant is the file's, or one drawn wider than the file (see [`Draw`]).
+//! The board's commissioning routine (`ema::device::commission`) against simulated
+//! actuators: the core's identification ticking as the control interrupt runs it (convert,
+//! identify, drive the board's bridge on the mock pins), the converter with its typical
+//! noise, quantisation and delay, the plant's RK4 with its end stops. The routine starts
+//! from the file; the plant is the file's, or one drawn wider than the file (see [`Draw`]).
 //!
 //! What is judged against the plant's own values: the resistance, the inductance at both
 //! stops (the plant's fringing included), the position readings at both stops (the drawn
@@ -697,11 +697,11 @@ pub fn hold_probe(a: &Actuator) -> crate::scenario::InductanceProbe {
     }
 }
 
-/// The inductance that inductance probes ([`ema::control::Probe`]) read, from the board's drive
-/// `u_v` (the voltage set at each tick, applied over the period after it) and its current
-/// readings `i_a` (each `delay` periods old), both from a probe's first tick, for each of
-/// the `runs`; `half_ticks` at each level, `r_ohm` the coil's resistance, `ts_s` the
-/// period: `(inductance [H], two standard errors of it [H])`.
+/// The inductance that inductance probes ([`ema::control::Probe`]) read, from the board's
+/// drive `u_v` (the voltage set at each tick, applied over the period after it) and its
+/// current readings `i_a` (each `delay` periods old), both from a probe's first tick, for
+/// each of the `runs`; `half_ticks` at each level, `r_ohm` the coil's resistance, `ts_s`
+/// the period: `(inductance [H], two standard errors of it [H])`.
 ///
 /// With the armature all but still and the voltage held over each period, the coil's
 /// current obeys `i(k+1) - i(k) = (1 - a) (u(k) / R - i(k))`, `a = exp(-Ts R / L)`,
@@ -1002,9 +1002,9 @@ pub const STOP_INDUCTANCE_CLASS: f64 = 0.01;
 /// growth: on 1000 drawn 12 V solenoids, whose surface is constant, a growth kept at
 /// three deviations read 4 springs more than 5 % off (up to 8.4 %), at five one to
 /// three in a thousand (up to 5.4 %, on two sets of draws; with the open stop's probe
-/// twice as long, [`ema::device::commission::PROBE_READINGS`], none and one, 5.2 %). A growth
-/// that matters is still kept: a pole whose sides grow by 0.3 of the gap, 14 % off the
-/// stops' line, is read within 2 % of its growth (the tests).
+/// twice as long, [`ema::device::commission::PROBE_READINGS`], none and one, 5.2 %). A
+/// growth that matters is still kept: a pole whose sides grow by 0.3 of the gap, 14 % off
+/// the stops' line, is read within 2 % of its growth (the tests).
 pub const GROWTH_SIGNIFICANCE: f64 = 5.0;
 
 /// The largest surface growth [`Circuit::fit`] considers, as `q g` at the open stop: at

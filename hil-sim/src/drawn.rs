@@ -28,12 +28,12 @@
 //! figures, as a datasheet gives it, before the rules are checked.
 //!
 //! Physical consistency is a rule, not a draw: a drawn actuator is kept only when it meets
-//! the rules of [`ema::control::actuator::Consistency`] (its current holds it anywhere on the stroke
-//! with a margin, its supply drives its rated current through the hot coil, its iron is
-//! not saturated where it is held, its magnet pulls at every gap on every surface the
-//! tolerance allows) and [`Actuator::settings`] derives every setting;
-//! otherwise the generator draws again, and counts why ([`Drawn::redrawn`]). A
-//! hand-written file that breaks a rule is refused by `tune` with the rule named.
+//! the rules of [`ema::control::actuator::Consistency`] (its current holds it anywhere on
+//! the stroke with a margin, its supply drives its rated current through the hot coil, its
+//! iron is not saturated where it is held, its magnet pulls at every gap on every surface
+//! the tolerance allows) and [`Actuator::settings`] derives every setting; otherwise the
+//! generator draws again, and counts why ([`Drawn::redrawn`]). A hand-written file that
+//! breaks a rule is refused by `tune` with the rule named.
 //!
 //! Actuator `k` of seed `s` is the same whatever the number drawn: each has its own
 //! random stream ([`crate::montecarlo::draw_seed`] of both).

@@ -17,8 +17,8 @@ pub enum Error {
     },
     /// The controller settings, refused by `ema::control::Settings::build`.
     Controller(ema::control::config::Error),
-    /// An actuator file, refused by `ema::control::actuator::Actuator::settings` (the name is the
-    /// field's in the file).
+    /// An actuator file, refused by `ema::control::actuator::Actuator::settings` (the name
+    /// is the field's in the file).
     Actuator(ema::control::config::Error),
 }
 

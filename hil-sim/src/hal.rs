@@ -1,6 +1,6 @@
-//! Mock hardware: the PWM channel and pins the core's [`ema::control::bridge::HBridge`] drives, the
-//! bridge and supply they switch, the converter that produces raw ADC codes, and the
-//! firmware's window watchdog.
+//! Mock hardware: the PWM channel and pins the core's [`ema::control::bridge::HBridge`]
+//! drives, the bridge and supply they switch, the converter that produces raw ADC codes,
+//! and the firmware's window watchdog.
 //!
 //! The mock PWM and pins share their state with a [`Lines`] handle through
 //! `Rc<Cell<..>>`; the runner reads [`Lines::switches`] after each tick to know what voltage
@@ -22,8 +22,8 @@
 //!
 //! The [`Supply`] is a source `V_s` behind an internal resistance: `Vbus = V_s - R_int I_bus`.
 //!
-//! The [`Watchdog`] is fed by the ticks the guard ([`ema::device::guard`]) finds on time; when
-//! nothing feeds it for its early-wakeup time, it coasts the bridge, as the firmware's
+//! The [`Watchdog`] is fed by the ticks the guard ([`ema::device::guard`]) finds on time;
+//! when nothing feeds it for its early-wakeup time, it coasts the bridge, as the firmware's
 //! window-watchdog interrupt does.
 
 use std::cell::Cell;
@@ -97,7 +97,8 @@ pub struct Lines {
 }
 
 /// What the bridge's switches do with the lines as they are (the core's
-/// [`ema::control::bridge::Drive`] is what the tick set the bridge to; this is what the plant sees).
+/// [`ema::control::bridge::Drive`] is what the tick set the bridge to; this is what the
+/// plant sees).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Switches {
     /// Enable low: all switches open.
@@ -259,7 +260,8 @@ pub const REFERENCE_APB1_HZ: u32 = 42_000_000;
 
 /// The firmware's window watchdog as the loop sees it: fed by on-time ticks, it coasts
 /// the bridge at the latest moment its early-wakeup interrupt can come after the last
-/// feed ([`ema::device::guard::Watchdog::early_wakeup_max_ns`]), checked at each sample instant.
+/// feed ([`ema::device::guard::Watchdog::early_wakeup_max_ns`]), checked at each sample
+/// instant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Watchdog {
     bite_after_ns: u64,
@@ -454,8 +456,9 @@ impl Default for Adc {
 }
 
 impl Adc {
-    /// A typical converter: 12 bits, the board's noise ([`ema::control::sense::NOISE_RMS_CODES`],
-    /// 1.5 codes RMS) on every channel, one sample of delay, seed 1.
+    /// A typical converter: 12 bits, the board's noise
+    /// ([`ema::control::sense::NOISE_RMS_CODES`], 1.5 codes RMS) on every channel, one
+    /// sample of delay, seed 1.
     #[must_use]
     pub fn typical() -> Self {
         let noise = ChannelError {

@@ -9,7 +9,8 @@
 //! repeats a scenario over plants drawn from the uncertainty set.
 //!
 //! The controller is only ever reached through `ema::control::Settings` ->
-//! `Config` -> `tick`, so any law the core offers (`ema::control::law::Settings`) runs unchanged.
+//! `Config` -> `tick`, so any law the core offers (`ema::control::law::Settings`) runs
+//! unchanged.
 //!
 //! ## Example: the paper's example at a 100 kHz ISR
 //!

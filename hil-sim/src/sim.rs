@@ -6,14 +6,13 @@
 //! `[t_k, t_k+1)` (zero-order hold, no computation delay; a converter delay is set in the
 //! sensor model).
 //!
-//! Every tick runs through the firmware's guard ([`ema::device::guard::Config::run`]) at the
-//! simulated time `t_k` in nanoseconds, and the ticks it finds on time feed a model of the
-//! firmware's window watchdog ([`hal::Watchdog`]). A missed deadline
+//! Every tick runs through the firmware's guard ([`ema::device::guard::Config::run`]) at
+//! the simulated time `t_k` in nanoseconds, and the ticks it finds on time feed a model of
+//! the firmware's window watchdog ([`hal::Watchdog`]). A missed deadline
 //! ([`Injected::MissedDeadlines`]) is a tick that does not run: the bridge keeps its last
-//! state, the guard sees the gap when the interrupt runs again and latches the overrun,
-//! and if the stall outlasts the watchdog, the watchdog coasts the bridge first (the
-//! firmware then resets and starts with the overrun latched, which is what the run
-//! records).
+//! state, the guard sees the gap when the interrupt runs again and latches the overrun, and
+//! if the stall outlasts the watchdog, the watchdog coasts the bridge first (the firmware
+//! then resets and starts with the overrun latched, which is what the run records).
 //!
 //! The board's over-current comparator on the timer's break input
 //! ([`crate::scenario::Bridge::break_current_a`]) is checked at every substep: once the

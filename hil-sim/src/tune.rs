@@ -4,14 +4,15 @@
 //!
 //! 1. **The current loop is fixed by the bounds**: `reach` puts its pole at
 //!    `1 - 0.7 L_lo / L`, never negative over the bounds; `integral` is fixed
-//!    ([`ema::control::law::practical::REACH`], [`ema::control::law::practical::INTEGRAL`]).
+//!    ([`ema::control::law::practical::REACH`],
+//!    [`ema::control::law::practical::INTEGRAL`]).
 //! 2. **The search space comes from the actuator** ([`Space::for_actuator`]): `alpha`
 //!    (`alpha1 = alpha2`, error poles `-alpha +- j`) on a half-octave grid through the
 //!    default gain, from a tenth to ten times its mechanical frequency
-//!    ([`ema::control::actuator::TimeScales::mechanical_rad_s`]), below a tenth of the interrupt
-//!    rate; the observer bandwidth as a multiple of `alpha`; the shaping margin. What the
-//!    coil can follow is found by the simulation, not assumed. No bound is a number tuned
-//!    on one actuator.
+//!    ([`ema::control::actuator::TimeScales::mechanical_rad_s`]), below a tenth of the
+//!    interrupt rate; the observer bandwidth as a multiple of `alpha`; the shaping margin.
+//!    What the coil can follow is found by the simulation, not assumed. No bound is a
+//!    number tuned on one actuator.
 //! 3. **Theorem 1** as the practical law has it ([`crate::lyapunov::Problem::practical`]):
 //!    the error system must be quadratically stable over every force gain the loop can
 //!    meet; a candidate that fails it is not simulated.

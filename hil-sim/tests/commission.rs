@@ -1,6 +1,7 @@
 //! Commissioning on the virtual board, through the host tool's own serial path: the
-//! board's identification (`ema::device::commission`, run by the board's interrupt half) against
-//! the simulated coil with the converter's typical noise, its delay and quantisation.
+//! board's identification (`ema::device::commission`, run by the board's interrupt half)
+//! against the simulated coil with the converter's typical noise, its delay and
+//! quantisation.
 //!
 //! Coils drawn up to 30 % either side of the file's resistance (a fixed, printed seed) are
 //! measured within 2 %; actuators drawn wider than their file (resistance, spring with an

@@ -1,7 +1,7 @@
-//! The board's commissioning routine (`ema::device::commission`) on every actuator of the family,
-//! against its simulated plant ([`hil_sim::commissioning`]): the file's plant here (the
-//! drawn plants are in `tests/commission.rs`, through the host tool and the virtual board,
-//! and in `hil-sim commission`).
+//! The board's commissioning routine (`ema::device::commission`) on every actuator of the
+//! family, against its simulated plant ([`hil_sim::commissioning`]): the file's plant here
+//! (the drawn plants are in `tests/commission.rs`, through the host tool and the virtual
+//! board, and in `hil-sim commission`).
 //!
 //! Each member: the resistance within 2 %, the inductance at both stops and the curve the
 //! written file models over the stroke within 5 % of the plant's, the position readings at both stops within 2 codes of the true positions',
@@ -135,10 +135,10 @@ fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
 }
 
 /// A position sensor at the corners of its tolerance
-/// ([`ema::control::actuator::POSITION_SENSOR_TOLERANCE`] in offset and in gain, the same way) reads
-/// inside the converter's plausible window at both stops on every member, the noise's reach
-/// ([`ema::control::actuator::NOISE_SIGMAS`] deviations) included; and the product with such a
-/// sensor is commissioned, its stops read within 2 codes.
+/// ([`ema::control::actuator::POSITION_SENSOR_TOLERANCE`] in offset and in gain, the same
+/// way) reads inside the converter's plausible window at both stops on every member, the
+/// noise's reach ([`ema::control::actuator::NOISE_SIGMAS`] deviations) included; and the
+/// product with such a sensor is commissioned, its stops read within 2 codes.
 #[test]
 fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commissioned() {
     let t = ema::control::actuator::POSITION_SENSOR_TOLERANCE;

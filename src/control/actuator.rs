@@ -229,7 +229,8 @@ pub struct Tuning {
     /// Reference-shaping margin, in (0, 1] \[-\].
     pub margin: f32,
     /// The observer's disturbance follows the magnet's force above a tenth of the current
-    /// limit ([`FORCE_SCALED_SHARE`], see [`crate::control::observer`]); otherwise it is constant.
+    /// limit ([`FORCE_SCALED_SHARE`], see [`crate::control::observer`]); otherwise it is
+    /// constant.
     pub disturbance_follows_force: bool,
 }
 
@@ -929,8 +930,8 @@ pub struct Consistency {
     /// weakest magnet the surface bounds allow \[-\].
     pub hold_ratio: f32,
     /// The largest voltage the bridge applies from the supply (at the rate's
-    /// [`crate::control::bridge::max_modulation`]) over the voltage the coil drops at the rated
-    /// current with its resistance at the hot end of its tolerance \[-\].
+    /// [`crate::control::bridge::max_modulation`]) over the voltage the coil drops at the
+    /// rated current with its resistance at the hot end of its tolerance \[-\].
     pub drive_ratio: f32,
     /// The largest flux density in an airgap where the nominal magnet holds the armature
     /// against the stiffest spring, over the stroke \[T\].
@@ -981,11 +982,11 @@ pub const NOISE_ALLOWANCE_CODES: f32 = NOISE_SIGMAS * core::f32::consts::SQRT_2 
 pub const STUCK_TRAVEL_BANDS: f32 = 1.0 + core::f32::consts::SQRT_2;
 
 /// The stuck-position detector for a position channel (see
-/// [`crate::control::supervisor::monitor::Stuck`]): a band of [`NOISE_ALLOWANCE_CODES`] position
-/// codes, so that a frozen reading stays in it, and [`STUCK_TRAVEL_BANDS`] bands of
-/// reference travel, so that a healthy one leaves it first. Both follow the sensor's
-/// resolution and noise only: the detection time is that travel over the armature's
-/// speed when the sensor freezes.
+/// [`crate::control::supervisor::monitor::Stuck`]): a band of [`NOISE_ALLOWANCE_CODES`]
+/// position codes, so that a frozen reading stays in it, and [`STUCK_TRAVEL_BANDS`] bands
+/// of reference travel, so that a healthy one leaves it first. Both follow the sensor's
+/// resolution and noise only: the detection time is that travel over the armature's speed
+/// when the sensor freezes.
 #[must_use]
 pub fn stuck_detector(position: &Channel) -> Stuck {
     Stuck {

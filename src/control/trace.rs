@@ -119,9 +119,9 @@ fn practical_20khz_24v() -> Result<Settings, crate::control::config::Error> {
     Settings::practical(20_000.0, 24.0)
 }
 
-/// The reference configurations, one per law of [`crate::control::law::NAMES`], in its order. Golden
-/// traces, the bit-exactness checks and the per-law instruction counts on the Cortex-M4F
-/// all iterate over this list; a new law gets its entry here.
+/// The reference configurations, one per law of [`crate::control::law::NAMES`], in its
+/// order. Golden traces, the bit-exactness checks and the per-law instruction counts on the
+/// Cortex-M4F all iterate over this list; a new law gets its entry here.
 pub const CASES: &[Case] = &[
     #[cfg(feature = "paper")]
     Case {

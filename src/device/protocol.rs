@@ -110,8 +110,8 @@ pub enum Command<'a> {
     /// The board's state ([`Reply::Status`]).
     Status,
     /// Nothing but "the host is alive" ([`Reply::Done`]): every request counts against
-    /// the link's timeout ([`crate::device::liveness`]); a host with nothing else to ask sends
-    /// this.
+    /// the link's timeout ([`crate::device::liveness`]); a host with nothing else to ask
+    /// sends this.
     Heartbeat,
     /// Closed loop, holding the present position. Refused while a fault is latched, a
     /// sensor reads implausible, the bus is outside its window or (4-20 mA set point) the
@@ -172,9 +172,10 @@ pub enum Command<'a> {
         /// First sample.
         offset: u16,
     },
-    /// Measures the coil's resistance with the loop open (see [`crate::device::commission`]):
-    /// disarmed only, with nothing latched and the sensors and bus ready. The board is
-    /// [`Mode::Commissioning`] until it ends; any fault or order ends it.
+    /// Measures the coil's resistance with the loop open (see
+    /// [`crate::device::commission`]): disarmed only, with nothing latched and the sensors
+    /// and bus ready. The board is [`Mode::Commissioning`] until it ends; any fault or
+    /// order ends it.
     Commission,
     /// The last commissioning's outcome ([`Reply::Commissioned`]).
     Commissioned,
@@ -211,7 +212,8 @@ pub enum Value {
     Number(f32),
     /// Yes or no.
     Flag(bool),
-    /// One of a parameter's named choices, by index ([`crate::device::params::Kind::Choice`]).
+    /// One of a parameter's named choices, by index
+    /// ([`crate::device::params::Kind::Choice`]).
     Choice(u8),
 }
 

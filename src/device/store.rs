@@ -16,8 +16,8 @@
 //! kept here, and what a later format added takes its default); a set of a format this
 //! firmware does not know (a later one) is refused by version; a set that decodes is
 //! still validated as a build validates an actuator file before it is used
-//! ([`crate::device::params::Params::build`], by the caller). A refused set stays in the flash
-//! until a save replaces it, and the board runs its built-in defaults and says why
+//! ([`crate::device::params::Params::build`], by the caller). A refused set stays in the
+//! flash until a save replaces it, and the board runs its built-in defaults and says why
 //! ([`LoadError`]); the host tool backs a set up and restores it across a firmware that
 //! cannot read it (`bench backup`, `bench restore`).
 //!

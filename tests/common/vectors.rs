@@ -30,8 +30,8 @@ pub fn fnv(mut h: u64, bits: u32) -> u64 {
 /// FNV-1a offset basis.
 pub const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
-/// Hash of `ema::control::math::sqrt` over the sweep (NaN results canonical), computed on the host
-/// with `libm::sqrtf` (what `ema::control::math::sqrt` is there).
+/// Hash of `ema::control::math::sqrt` over the sweep (NaN results canonical), computed on
+/// the host with `libm::sqrtf` (what `ema::control::math::sqrt` is there).
 pub const SQRT_SWEEP_HASH: u64 = 0xd297_55d4_6b41_ecc7;
 
 /// The hash of `sqrt` over the sweep.

@@ -2,8 +2,8 @@
 //! lose its power at any single write or erase.
 //!
 //! The store's two pages are the chip's two 16 KiB sectors the firmware keeps its
-//! parameters in ([`ema::device::store::SECTOR_BYTES`]); byte writes, as the HAL programs them. A write can
-//! only clear bits; an erase sets a whole page to `0xFF`.
+//! parameters in ([`ema::device::store::SECTOR_BYTES`]); byte writes, as the HAL programs
+//! them. A write can only clear bits; an erase sets a whole page to `0xFF`.
 //!
 //! **Power cuts.** [`Flash::cut_after`] arms a cut: the flash counts every byte it
 //! programs and every page it erases as one step, and at the chosen step the power goes:

@@ -10,8 +10,8 @@
 //!   seen meanwhile.
 //! * **Heartbeat.** While the link is open, a thread sends
 //!   [`Command::Heartbeat`] whenever no request has gone out for [`HEARTBEAT`], a quarter
-//!   of the shortest timeout a board accepts ([`ema::device::liveness::MIN_TIMEOUT_S`]): an armed
-//!   board keeps its host for as long as this process runs, computing or waiting
+//!   of the shortest timeout a board accepts ([`ema::device::liveness::MIN_TIMEOUT_S`]): an
+//!   armed board keeps its host for as long as this process runs, computing or waiting
 //!   included, and disarms within its `link.timeout_s` once the process ends.
 
 use std::collections::VecDeque;

@@ -239,12 +239,13 @@ impl Scenario {
     }
 
     /// The product's realistic default at an ISR rate of `rate_hz` on a `supply_v`
-    /// supply: the product's actuator ([`ema::control::actuator::Actuator::PRODUCT`], the physical
-    /// convention) with every setting derived from it (the practical law, extended-state
-    /// observer, one sample of measurement delay, reference shaping, every fault
-    /// detector), judged as [`crate::actuator::scenario`] judges any actuator (converter
-    /// noise and delay, supply resistance, averaged bridge, nominal plant with frozen
-    /// fringing), on the paper's step from 1 mm to 3 mm from rest without current, 0.4 s.
+    /// supply: the product's actuator ([`ema::control::actuator::Actuator::PRODUCT`], the
+    /// physical convention) with every setting derived from it (the practical law,
+    /// extended-state observer, one sample of measurement delay, reference shaping, every
+    /// fault detector), judged as [`crate::actuator::scenario`] judges any actuator
+    /// (converter noise and delay, supply resistance, averaged bridge, nominal plant with
+    /// frozen fringing), on the paper's step from 1 mm to 3 mm from rest without current,
+    /// 0.4 s.
     ///
     /// # Errors
     /// A rate or supply the derivation refuses, by name.

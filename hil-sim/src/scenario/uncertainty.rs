@@ -115,10 +115,9 @@ impl Uncertainty {
     /// Draws a true plant around the controller's nominal plant `nominal`: mechanics and
     /// resistance within the relative spreads, each gap's surface anywhere within the
     /// physical surface bounds `[S_lo, S_hi]` over the whole stroke
-    /// (`ema::control::model::Plant::physical_bounds`: the paper's bounds, which the controller's
-    /// contain) (constant, or a
-    /// square pole `(a + k g)^2` whose surface at the two ends of the gap range is drawn
-    /// inside the bounds), and the force model.
+    /// (`ema::control::model::Plant::physical_bounds`: the paper's bounds, which the
+    /// controller's contain) (constant, or a square pole `(a + k g)^2` whose surface at the
+    /// two ends of the gap range is drawn inside the bounds), and the force model.
     ///
     /// Never panics: spreads and probabilities outside their ranges (see
     /// [`Uncertainty::validate`]) are clamped into them, and degenerate bounds give the

@@ -70,8 +70,8 @@
 //! checks both that the update event comes at the top and that the conversions end just
 //! after it, and refuses to run otherwise.
 //!
-//! The sensor scales are the core's constants ([`ema::control::sense`]); only the current zero is
-//! measured here, at start, with the bridge off.
+//! The sensor scales are the core's constants ([`ema::control::sense`]); only the current
+//! zero is measured here, at start, with the bridge off.
 
 use ema::control::actuator::Actuator;
 use ema::control::config;
@@ -227,9 +227,9 @@ pub const ADC_END_AFTER_TOP_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
     - ADC_TRIGGER_LEAD_COUNTS;
 /// Highest duty \[per mille\] whose off-time holds the whole sequence, trigger to last
 /// conversion: above it, a switching edge falls inside a conversion. The current's own
-/// sample is kept clear by the tick up to 100 % (`ema::control::bridge::max_modulation`: duties
-/// between 90.7 % and 100 % at 20 kHz are snapped to one or the other); the position and
-/// the bus, converted 1.9 us either side of it, are filtered and far less sensitive.
+/// sample is kept clear by the tick up to 100 % (`ema::control::bridge::max_modulation`:
+/// duties between 90.7 % and 100 % at 20 kHz are snapped to one or the other); the position
+/// and the bus, converted 1.9 us either side of it, are filtered and far less sensitive.
 pub const SEQUENCE_IN_OFF_TIME_MAX_PERMILLE: u32 = 1000
     - ((if ADC_TRIGGER_LEAD_COUNTS > ADC_END_AFTER_TOP_COUNTS {
         ADC_TRIGGER_LEAD_COUNTS
@@ -371,10 +371,10 @@ pub const BREAK_PORT: char = 'B';
 /// Pin number of the break input.
 pub const BREAK_PIN: u8 = 12;
 /// Trip level the board's comparator on the current shunt must be set to, either direction
-/// \[A\]: [`ema::control::actuator::Actuator::break_current_a`], 20 % above the software trip (the
-/// actuator's peak current, 13.2 A on the product's), inside the current channel's full
-/// scale (the actuator file's validation; checked again below). With the product's
-/// actuator, 15.84 A of its +-16.5 A.
+/// \[A\]: [`ema::control::actuator::Actuator::break_current_a`], 20 % above the software
+/// trip (the actuator's peak current, 13.2 A on the product's), inside the current
+/// channel's full scale (the actuator file's validation; checked again below). With the
+/// product's actuator, 15.84 A of its +-16.5 A.
 pub const BREAK_CURRENT_A: f32 = ACTUATOR.break_current_a();
 
 /// The bus voltage the board must stay below when the coil's energy returns to it \[V\]:

@@ -14,9 +14,9 @@
 //! ground off the power stage's, which a USB cable straight to the board would not. The
 //! price is the adapter and the rate below.
 //!
-//! At [`ema::device::protocol::BAUD`] (460 800 baud, 46 bytes per millisecond), the receive ring
-//! ([`RX_RING`] bytes) holds more than 5 ms of input; the main loop reads it every 50 us
-//! except while it writes the flash, which only happens before the link starts (see
+//! At [`ema::device::protocol::BAUD`] (460 800 baud, 46 bytes per millisecond), the receive
+//! ring ([`RX_RING`] bytes) holds more than 5 ms of input; the main loop reads it every 50
+//! us except while it writes the flash, which only happens before the link starts (see
 //! `app`). A host that sends more than the ring holds while the dispatcher waits for an
 //! answer (one tick) would lose bytes: the CRC of the frame then refuses it by name.
 

@@ -12,8 +12,8 @@
 //! u = -alpha3 sign(S)
 //! ```
 //!
-//! `g` is the airgap at `x1` ([`crate::control::model::Convention`]); `x3d'` is the backward
-//! difference of the sampled `x3d` over the configured sample period.
+//! `g` is the airgap at `x1` ([`crate::control::model::Convention`]); `x3d'` is the
+//! backward difference of the sampled `x3d` over the configured sample period.
 //!
 //! Corrections: (1) `x3d^2` is negative whenever `z2 > 0` (the magnet cannot pull the
 //! other way), so `x3d` is clipped to 0 there; (2) Theorem 3's `eps` is written with

@@ -14,14 +14,14 @@
 //! ```
 //!
 //! `m`, `K`, `lambda` and `mu` are the *robust design model*
-//! ([`crate::control::model::Plant::robust_dynamics`]): every uncertain parameter at the bound that
-//! makes the actuator slowest to follow a force command (`mu = mu_lo`, the heaviest mass,
-//! the softest spring, the most friction). This is the paper's use of `mu_lo` in `x3d`,
-//! extended to every parameter, and it is what keeps the overshoot small over the whole
-//! uncertainty set: a plant stronger than the model leads the reference a little and is
-//! pulled back; a plant weaker than the model would lag during the move while `d` builds
-//! up, and `d` would then overshoot as the move ends. The observer must use the same model
-//! ([`crate::control::observer::Model::Robust`]).
+//! ([`crate::control::model::Plant::robust_dynamics`]): every uncertain parameter at the
+//! bound that makes the actuator slowest to follow a force command (`mu = mu_lo`, the
+//! heaviest mass, the softest spring, the most friction). This is the paper's use of
+//! `mu_lo` in `x3d`, extended to every parameter, and it is what keeps the overshoot small
+//! over the whole uncertainty set: a plant stronger than the model leads the reference a
+//! little and is pulled back; a plant weaker than the model would lag during the move while
+//! `d` builds up, and `d` would then overshoot as the move ends. The observer must use the
+//! same model ([`crate::control::observer::Model::Robust`]).
 //!
 //! (1) is backstepping for `x'' = a`: with `V = (z1^2 + z2^2)/2` it gives
 //! `V' = -alpha1 z1^2 - alpha2 z2^2` when the model is exact, i.e. Theorem 1's `Q` becomes

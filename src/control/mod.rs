@@ -1,4 +1,14 @@
-//! The one tick: sense -> shaping -> observer -> law -> detectors -> bridge.
+//! The control layer: everything the control tick computes, and the tick itself.
+//!
+//! The tick runs sense -> limits -> set point -> shaping -> observer -> law -> supervisor
+//! -> bridge (each step in the crate docs' architecture section). Its stages are the
+//! submodules ([`sense`], [`shaping`], [`observer`], [`law`], [`supervisor`], [`bridge`]),
+//! with what they share ([`model`], [`actuator`], [`config`], [`math`]) and the golden
+//! traces that record and replay it ([`trace`]). The tick is this module's root, not a
+//! submodule of its own: [`Config`] is the layer's configuration, made of each stage's
+//! `Config` (`law::Config`, `observer::Config`, ...), so `control::Config::tick` names it
+//! as the stages are named, and a `control::tick::Config::tick` would say "tick" twice.
+//! The layer uses nothing else in the crate: the build script compiles it alone.
 //!
 //! [`Settings`] is the plain description (what a configuration file holds);
 //! [`Settings::build`] validates it into an immutable [`Config`], the only thing the tick

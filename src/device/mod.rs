@@ -4,6 +4,14 @@
 //! flash, the reset) stays in the firmware; `hil-sim` gives the same two halves a
 //! simulated plant, a pseudo-terminal and a simulated flash.
 //!
+//! This module's root is the application (its two halves, the queues between them, the
+//! start-up's [`boot`]); its submodules are what only the application uses: the link's
+//! messages and frames ([`protocol`]), the parameters ([`params`]) and their store
+//! ([`store`]), the analog set point ([`analog`]), the commissioning routine
+//! ([`commission`]), the checks around each tick ([`guard`]) and the link's and main loop's
+//! liveness ([`liveness`]). It runs the control layer ([`crate::control`]), which does not
+//! know it.
+//!
 //! **Where it runs.** The firmware's control interrupt runs [`Controller::tick`] and its
 //! main loop the [`Dispatcher`], over USART2 and the chip's flash; `hil-sim`'s virtual
 //! board runs the same two halves (the host tool is tested against it), and

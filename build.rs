@@ -3,62 +3,30 @@
 //! 1. **The actuator the firmware is built for.** `EMA_ACTUATOR=path/to/file.toml cargo fw`
 //!    builds the firmware for that actuator file (a hand-written one or the tuned one
 //!    `hil-sim tune` writes; a relative path is taken from the workspace root); without
-//!    it, for the product's default actuator (`ema::actuator::Actuator::PRODUCT`). The
-//!    file is read and every setting derived here, with the control core's own code, so a
-//!    bad file fails the build with the field and its value named, exactly as `hil-sim`
+//!    it, for the product's default actuator (`ema::control::actuator::Actuator::PRODUCT`).
+//!    The file is read and every setting derived here, with the control core's own code, so
+//!    a bad file fails the build with the field and its value named, exactly as `hil-sim`
 //!    refuses it. The actuator is then written as a Rust constant to
 //!    `$OUT_DIR/actuator.rs`, which the firmware's `board.rs` includes; the firmware
 //!    derives its settings from it at start, bit for bit as here (f32 only).
-//! 2. **The build's identity.** `EMA_BUILD_ID` (for `ema::protocol::Build::THIS`, which
-//!    the board reports in its status): the commit the sources are at, `git rev-parse
+//! 2. **The build's identity.** `EMA_BUILD_ID` (for `ema::device::protocol::Build::THIS`,
+//!    which the board reports in its status): the commit the sources are at, `git rev-parse
 //!    --short=12 HEAD`; `unknown` outside a repository.
 //! 3. **Link scripts.** For the thumb builds, puts `memory.x` on the linker search path
 //!    (cortex-m-rt's `link.x` includes it) and links defmt's script into the firmware
 //!    binary only. `-Tlink.x` itself is given once, in `.cargo/config.toml`.
 //!
-//! The core is included below module by module, with the same names as in `src/lib.rs`,
-//! so that its `crate::` paths resolve here too: a build script cannot depend on the
-//! package it builds.
+//! The control layer (`src/control/`) is included below as one module, under its name in
+//! `src/lib.rs`, so that its `crate::control::` paths resolve here too: a build script
+//! cannot depend on the package it builds. The control layer depends on nothing else in
+//! the crate; the board's application (`src/device/`) is not needed here.
 use std::{env, fs, path::PathBuf, process::Command};
 
 #[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/actuator.rs"]
-mod actuator;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/bridge.rs"]
-mod bridge;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/config.rs"]
-mod config;
-#[allow(dead_code, unused_imports, clippy::all)]
 #[path = "src/control/mod.rs"]
 mod control;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/law/mod.rs"]
-mod law;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/math.rs"]
-mod math;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/model.rs"]
-mod model;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/observer.rs"]
-mod observer;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/sense.rs"]
-mod sense;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/shaping.rs"]
-mod shaping;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/supervisor/mod.rs"]
-mod supervisor;
-#[allow(dead_code, unused_imports, clippy::all)]
-#[path = "src/trace.rs"]
-mod trace;
 
-use actuator::{Actuator, Board, Coil, Magnetics, Mechanics, Tolerances, Tuning};
+use control::actuator::{Actuator, Board, Coil, Magnetics, Mechanics, Tolerances, Tuning};
 
 fn main() {
     println!("cargo:rerun-if-changed=memory.x");
@@ -134,9 +102,10 @@ fn fail(message: &str) -> ! {
     std::process::exit(1)
 }
 
-/// The actuator as a Rust expression of `ema::actuator::Actuator`. `{:?}` writes every
-/// `f32` in its shortest form that reads back to the same bits. The destructuring names
-/// every field, so a field added to the file format without a place here fails to build.
+/// The actuator as a Rust expression of `ema::control::actuator::Actuator`. `{:?}` writes
+/// every `f32` in its shortest form that reads back to the same bits. The destructuring
+/// names every field, so a field added to the file format without a place here fails to
+/// build.
 fn literal(a: &Actuator) -> String {
     let Actuator {
         mechanics:
@@ -184,13 +153,13 @@ fn literal(a: &Actuator) -> String {
             fringing_spread,
             iron_reluctance_per_h,
         } => format!(
-            "ema::actuator::Magnetics::Geometry {{ gaps: {gaps:?}, pole_a_m: {pole_a_m:?}, \
+            "ema::control::actuator::Magnetics::Geometry {{ gaps: {gaps:?}, pole_a_m: {pole_a_m:?}, \
              pole_b_m: {pole_b_m:?}, fringing_coefficient: {fringing_coefficient:?}, \
              fringing_spread: {fringing_spread:?}, iron_reluctance_per_h: \
              {iron_reluctance_per_h:?} }}"
         ),
         Magnetics::Inductance { open_h, closed_h } => format!(
-            "ema::actuator::Magnetics::Inductance {{ open_h: {open_h:?}, closed_h: {closed_h:?} }}"
+            "ema::control::actuator::Magnetics::Inductance {{ open_h: {open_h:?}, closed_h: {closed_h:?} }}"
         ),
     };
     let tuning = match tuning {
@@ -200,7 +169,7 @@ fn literal(a: &Actuator) -> String {
             margin,
             disturbance_follows_force,
         }) => format!(
-            "Some(ema::actuator::Tuning {{ alpha_per_s: {alpha_per_s:?}, observer_rad_s: \
+            "Some(ema::control::actuator::Tuning {{ alpha_per_s: {alpha_per_s:?}, observer_rad_s: \
              {observer_rad_s:?}, margin: {margin:?}, disturbance_follows_force: \
              {disturbance_follows_force} }})"
         ),
@@ -208,18 +177,18 @@ fn literal(a: &Actuator) -> String {
     };
     format!(
         "// Written by build.rs from the actuator file the firmware is built for.\n\
-         ema::actuator::Actuator {{\n\
-         mechanics: ema::actuator::Mechanics {{ mass_kg: {mass_kg:?}, spring_n_per_m: \
+         ema::control::actuator::Actuator {{\n\
+         mechanics: ema::control::actuator::Mechanics {{ mass_kg: {mass_kg:?}, spring_n_per_m: \
          {spring_n_per_m:?}, preload_n: {preload_n:?}, friction_n_s_per_m: \
          {friction_n_s_per_m:?}, stroke_m: {stroke_m:?}, residual_gap_m: {residual_gap_m:?} }},\n\
-         coil: ema::actuator::Coil {{ resistance_ohm: {resistance_ohm:?}, turns: {turns:?}, \
+         coil: ema::control::actuator::Coil {{ resistance_ohm: {resistance_ohm:?}, turns: {turns:?}, \
          rated_current_a: {rated_current_a:?}, peak_current_a: {peak_current_a:?}, \
          peak_time_s: {peak_time_s:?} }},\n\
          magnetics: {magnetics},\n\
-         board: ema::actuator::Board {{ supply_v: {supply_v:?}, rate_hz: {rate_hz:?}, \
+         board: ema::control::actuator::Board {{ supply_v: {supply_v:?}, rate_hz: {rate_hz:?}, \
          position_span_m: {position_span_m:?}, current_full_scale_a: {current_full_scale_a:?}, \
          vbus_full_scale_v: {vbus_full_scale_v:?} }},\n\
-         tolerance: ema::actuator::Tolerances {{ surface: {surface:?}, mass: {mass:?}, \
+         tolerance: ema::control::actuator::Tolerances {{ surface: {surface:?}, mass: {mass:?}, \
          spring: {spring:?}, friction: {friction:?}, resistance: {resistance:?} }},\n\
          tuning: {tuning},\n\
          }}\n"

@@ -12,16 +12,21 @@ fn host_square_root_is_libm_and_matches_the_saved_sweep() {
     for k in 0..SQRT_SWEEP_COUNT {
         let x = sqrt_input(k);
         assert_eq!(
-            ema::trace::bits(ema::math::sqrt(x)),
-            ema::trace::bits(libm::sqrtf(x)),
+            ema::control::trace::bits(ema::control::math::sqrt(x)),
+            ema::control::trace::bits(libm::sqrtf(x)),
             "sqrt({x:e})"
         );
     }
-    let h = sqrt_sweep_hash(ema::math::sqrt);
+    let h = sqrt_sweep_hash(ema::control::math::sqrt);
     assert_eq!(h, SQRT_SWEEP_HASH, "SQRT_SWEEP_HASH should be {h:#018x}");
     let cases: Vec<(u32, u32)> = SQRT_CASES
         .iter()
-        .map(|&(x, _)| (x, ema::trace::bits(ema::math::sqrt(f32::from_bits(x)))))
+        .map(|&(x, _)| {
+            (
+                x,
+                ema::control::trace::bits(ema::control::math::sqrt(f32::from_bits(x))),
+            )
+        })
         .collect();
     let rows: Vec<String> = cases
         .iter()

@@ -9,7 +9,7 @@ mod session;
 
 use std::convert::Infallible;
 
-use ema::bridge::HBridge;
+use ema::control::bridge::HBridge;
 use ema::device::Queues;
 use session::{Session, CAPTURE, FRAMES_HASH, FRAMES_LEN, LINK_TIMEOUT_TICKS, MAIN_LOOP_TICKS};
 
@@ -19,7 +19,7 @@ impl embedded_hal::pwm::ErrorType for Pwm {
 }
 impl embedded_hal::pwm::SetDutyCycle for Pwm {
     fn max_duty_cycle(&self) -> u16 {
-        ema::bridge::BOARD_MAX_DUTY
+        ema::control::bridge::BOARD_MAX_DUTY
     }
     fn set_duty_cycle(&mut self, _: u16) -> Result<(), Infallible> {
         Ok(())

@@ -4,13 +4,13 @@
 //! identity differs from the case's settings now, or a replay through `Config::tick`
 //! differs in any output bit. Either fails here, before the slower on-target check
 //! (`tests/qemu_golden.rs`) runs. Every reference case must have a trace of at least
-//! `ema::trace::MIN_GOLDEN_TICKS` ticks, and the on-target check must include it.
+//! `ema::control::trace::MIN_GOLDEN_TICKS` ticks, and the on-target check must include it.
 
 use std::path::{Path, PathBuf};
 
-use ema::bridge::{HBridge, NullPin, NullPwm};
-use ema::law;
-use ema::trace::{self, CASES, MIN_GOLDEN_TICKS};
+use ema::control::bridge::{HBridge, NullPin, NullPwm};
+use ema::control::law;
+use ema::control::trace::{self, CASES, MIN_GOLDEN_TICKS};
 
 fn golden(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -75,7 +75,8 @@ fn the_target_check_includes_every_trace() {
     }
 }
 
-/// One reference case per law, in the order of `ema::law::NAMES`, each running its law.
+/// One reference case per law, in the order of `ema::control::law::NAMES`, each running its
+/// law.
 #[test]
 fn every_law_variant_has_its_case() {
     let names: Vec<&str> = CASES.iter().map(|c| c.name).collect();

@@ -1,7 +1,7 @@
-//! Bit-exactness smoke test on the Cortex-M4F: `ema::math::sqrt` (one `vsqrt.f32`) and the
-//! paper's law give the very bits the host computed (`tests/common/vectors.rs`, checked on
-//! the host by `tests/bits_host.rs`), and `vsqrt` agrees with `libm::sqrtf` run on the
-//! target itself over a sweep of 2^18 bit patterns of every kind.
+//! Bit-exactness smoke test on the Cortex-M4F: `ema::control::math::sqrt` (one `vsqrt.f32`)
+//! and the paper's law give the very bits the host computed (`tests/common/vectors.rs`,
+//! checked on the host by `tests/bits_host.rs`), and `vsqrt` agrees with `libm::sqrtf` run
+//! on the target itself over a sweep of 2^18 bit patterns of every kind.
 #![no_std]
 #![no_main]
 
@@ -13,7 +13,7 @@ mod vectors;
 use core::hint::black_box;
 
 use cortex_m_rt::entry;
-use ema::trace::bits;
+use ema::control::trace::bits;
 use vectors::*;
 
 #[panic_handler]
@@ -25,7 +25,7 @@ fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
 fn main() -> ! {
     // 1. Square roots one by one.
     for &(x, want) in SQRT_CASES {
-        let got = bits(ema::math::sqrt(black_box(f32::from_bits(x))));
+        let got = bits(ema::control::math::sqrt(black_box(f32::from_bits(x))));
         ensure!(
             got == want,
             "sqrt({:#010x}) = {:#010x}, host {:#010x}",
@@ -43,7 +43,7 @@ fn main() -> ! {
     let mut differ = 0u32;
     for k in 0..SQRT_SWEEP_COUNT {
         let x = black_box(sqrt_input(k));
-        let (a, b) = (bits(ema::math::sqrt(x)), bits(libm::sqrtf(x)));
+        let (a, b) = (bits(ema::control::math::sqrt(x)), bits(libm::sqrtf(x)));
         if a != b {
             if differ == 0 {
                 outln!(
@@ -62,7 +62,7 @@ fn main() -> ! {
         differ,
         SQRT_SWEEP_COUNT
     );
-    let h = sqrt_sweep_hash(|x| ema::math::sqrt(black_box(x)));
+    let h = sqrt_sweep_hash(|x| ema::control::math::sqrt(black_box(x)));
     ensure!(
         h == SQRT_SWEEP_HASH,
         "sweep hash {:#018x}, host {:#018x}",

@@ -1,11 +1,11 @@
 //! Instructions per tick on the Cortex-M4F, for every reference case (one per law).
 //!
-//! Runs each case of `ema::trace::CASES` in closed loop with a small actuator model
-//! (`common::plant`) for [`TICKS`] ticks (1 mm at rest, step to 3 mm, then to 2 mm) and
-//! counts, with TIM2 under `-icount shift=0`, the instructions of
+//! Runs each case of `ema::control::trace::CASES` in closed loop with a small actuator
+//! model (`common::plant`) for [`TICKS`] ticks (1 mm at rest, step to 3 mm, then to 2 mm)
+//! and counts, with TIM2 under `-icount shift=0`, the instructions of
 //!
 //! * the whole tick (`Config::tick`: sense -> observer -> law -> supervisor -> bridge),
-//! * the law alone (`ema::law::Law::step` on the same inputs and state),
+//! * the law alone (`ema::control::law::Law::step` on the same inputs and state),
 //! * each stage on its own (sense, observer, law, limits, bridge), to show where the
 //!   instructions go.
 //!
@@ -22,22 +22,22 @@
 
 #[macro_use]
 mod common;
-use ema::bridge::BOARD_MAX_DUTY;
+use ema::control::bridge::BOARD_MAX_DUTY;
 
 use core::hint::black_box;
 
 use common::plant::Plant;
 use common::{min_median_max, Bridge, Counter};
 use cortex_m_rt::entry;
-use ema::bridge::Drive;
+use ema::control::bridge::Drive;
+use ema::control::law::{self, Law, Reference};
+use ema::control::observer;
+use ema::control::sense::{Frame, Measurement};
+use ema::control::shaping;
+use ema::control::supervisor::monitor;
+use ema::control::supervisor::Fault;
+use ema::control::trace::CASES;
 use ema::control::{Config, State, Status};
-use ema::law::{self, Law, Reference};
-use ema::observer;
-use ema::sense::{Frame, Measurement};
-use ema::shaping;
-use ema::supervisor::monitor;
-use ema::supervisor::Fault;
-use ema::trace::CASES;
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
@@ -95,11 +95,11 @@ fn limits(cfg: &Config, m: &Measurement) -> Option<Fault> {
 #[inline(never)]
 fn shape(cfg: &Config, st: &mut shaping::State, x_m: f32, setpoint_m: f32) -> Reference {
     let stroke = cfg.stroke_m();
-    let setpoint_m = ema::math::clamp(setpoint_m, 0.0, stroke);
+    let setpoint_m = ema::control::math::clamp(setpoint_m, 0.0, stroke);
     match cfg.shaping() {
         Some(shaping) => {
             if !st.is_primed() {
-                shaping.start(st, ema::math::clamp(x_m, 0.0, stroke));
+                shaping.start(st, ema::control::math::clamp(x_m, 0.0, stroke));
             }
             shaping.step(st, setpoint_m)
         }
@@ -117,16 +117,16 @@ fn monitor(
 ) -> Option<Fault> {
     let f = cfg.monitors().check(st, inputs);
     cfg.monitors()
-        .record_drive(st, d.u_v, d.mode != ema::bridge::Mode::Coast);
+        .record_drive(st, d.u_v, d.mode != ema::control::bridge::Mode::Coast);
     f
 }
 
 #[inline(never)]
-fn drive(b: &mut Bridge, u_v: f32, vbus_v: f32, clear: f32) -> ema::bridge::Drive {
+fn drive(b: &mut Bridge, u_v: f32, vbus_v: f32, clear: f32) -> ema::control::bridge::Drive {
     match b.apply_clear(u_v, vbus_v, clear) {
         Ok(d) => d,
         Err(e) => match e {
-            ema::bridge::Error::Pwm(e) | ema::bridge::Error::Pin(e) => match e {},
+            ema::control::bridge::Error::Pwm(e) | ema::control::bridge::Error::Pin(e) => match e {},
         },
     }
 }

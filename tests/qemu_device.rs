@@ -13,7 +13,7 @@
 
 #[macro_use]
 mod common;
-use ema::bridge::BOARD_MAX_DUTY;
+use ema::control::bridge::BOARD_MAX_DUTY;
 
 use common::session::{Session, FRAMES_HASH, FRAMES_LEN, LINK_TIMEOUT_TICKS, MAIN_LOOP_TICKS};
 use common::Counter;
@@ -39,9 +39,9 @@ const WRAP_BUDGET: u32 = 135;
 const RECORD_BUDGET: u32 = 110;
 
 /// Budget of the main loop's longest pass \[instructions\]: a tenth of its deadline
-/// (`ema::liveness::MAIN_LOOP_DEADLINE_S`, 20 ms: 3.36 M cycles at 168 MHz), so that the
-/// deadline holds with ten times the margin even where an instruction takes several
-/// cycles (flash wait states, divisions).
+/// (`ema::device::liveness::MAIN_LOOP_DEADLINE_S`, 20 ms: 3.36 M cycles at 168 MHz), so
+/// that the deadline holds with ten times the margin even where an instruction takes
+/// several cycles (flash wait states, divisions).
 const MAIN_PASS_BUDGET: u32 = 336_000;
 
 #[entry]

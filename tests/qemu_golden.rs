@@ -1,7 +1,7 @@
 //! Golden traces replayed on the Cortex-M4F: every output bit of every tick must equal what
-//! the host recorded (`ema::trace`, format in `src/trace.rs`). The traces sit in flash
-//! (`include_bytes!`); the bridge is the RAM bridge with the trace's PWM resolution. On a
-//! mismatch the run prints the first differing tick and field and fails.
+//! the host recorded (`ema::control::trace`, format in `src/control/trace.rs`). The traces
+//! sit in flash (`include_bytes!`); the bridge is the RAM bridge with the trace's PWM
+//! resolution. On a mismatch the run prints the first differing tick and field and fails.
 //!
 //! `tests/golden_host.rs` checks on the host that every reference case has a trace listed
 //! here and that none is stale.
@@ -12,7 +12,7 @@
 mod common;
 
 use cortex_m_rt::entry;
-use ema::trace;
+use ema::control::trace;
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {

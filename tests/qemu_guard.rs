@@ -1,4 +1,5 @@
-//! The guard (`ema::guard`) as the firmware's control interrupt runs it, on the Cortex-M4F.
+//! The guard (`ema::device::guard`) as the firmware's control interrupt runs it, on the
+//! Cortex-M4F.
 //!
 //! SysTick fires at the control rate (20 kHz) and runs the product's tick (the practical
 //! law, closed loop with the plant stand-in) through `guard::Config::run`, with what the
@@ -26,7 +27,7 @@
 
 #[macro_use]
 mod common;
-use ema::bridge::BOARD_MAX_DUTY;
+use ema::control::bridge::BOARD_MAX_DUTY;
 
 use core::cell::RefCell;
 use core::hint::black_box;
@@ -37,10 +38,10 @@ use cortex_m::interrupt::{self, Mutex};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::{SCB, SYST};
 use cortex_m_rt::{entry, exception};
-use ema::bridge::Mode;
+use ema::control::bridge::Mode;
+use ema::control::supervisor::Fault;
 use ema::control::{Config, Settings, State};
-use ema::guard::{self, End, Start, Watchdog, WATCHDOG_QUIET_PERIODS};
-use ema::supervisor::Fault;
+use ema::device::guard::{self, End, Start, Watchdog, WATCHDOG_QUIET_PERIODS};
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
@@ -249,7 +250,7 @@ fn main() -> ! {
     let Some(mut cp) = cortex_m::Peripherals::take() else {
         common::fail(format_args!("core peripherals taken twice"))
     };
-    let Some(case) = ema::trace::case("practical") else {
+    let Some(case) = ema::control::trace::case("practical") else {
         common::fail(format_args!("no practical case"))
     };
     let settings = match (case.settings)() {

@@ -17,7 +17,7 @@
 
 #[macro_use]
 mod common;
-use ema::bridge::BOARD_MAX_DUTY;
+use ema::control::bridge::BOARD_MAX_DUTY;
 
 use core::cell::RefCell;
 
@@ -29,7 +29,7 @@ use cortex_m::peripheral::SCB;
 use cortex_m_rt::{entry, exception};
 use ema::control::{Config, State};
 
-use ema::trace::CASES;
+use ema::control::trace::CASES;
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {

@@ -16,10 +16,10 @@
 #[path = "common/plant.rs"]
 mod plant;
 
-use ema::bridge::{HBridge, Mode, NullPin, NullPwm, BOARD_MAX_DUTY as MAX_DUTY};
+use ema::control::bridge::{HBridge, Mode, NullPin, NullPwm, BOARD_MAX_DUTY as MAX_DUTY};
+use ema::control::sense::{Frame, ADC_MAX_CODE};
+use ema::control::supervisor::Fault;
 use ema::control::Settings;
-use ema::sense::{Frame, ADC_MAX_CODE};
-use ema::supervisor::Fault;
 use proptest::prelude::*;
 use proptest::test_runner::{FileFailurePersistence, RngSeed, TestRunner};
 

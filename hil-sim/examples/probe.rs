@@ -1,5 +1,5 @@
-use ema::bridge::HBridge;
-use ema::commission::{Identification, Plan, Step};
+use ema::control::bridge::HBridge;
+use ema::device::commission::{Identification, Plan, Step};
 use hil_sim::bench::board::scenario;
 use hil_sim::hal::{self};
 use hil_sim::scenario::Sensors;
@@ -9,7 +9,7 @@ fn main() {
     let name = std::env::args().nth(1).unwrap_or("plunger-1kg".into());
     for seed in 1..=6u64 {
         let (_, a) = hil_sim::actuator::load(&name).unwrap();
-        let a = ema::actuator::Actuator { tuning: None, ..a };
+        let a = ema::control::actuator::Actuator { tuning: None, ..a };
         let mut sc = scenario(&a, true).unwrap();
         if let Sensors::Adc(adc) = &mut sc.sensors {
             adc.seed = seed;

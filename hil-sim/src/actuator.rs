@@ -2,13 +2,14 @@
 //! (`hil-sim/actuators/*.toml`), loading a file, the scenario an actuator is evaluated on,
 //! and tuned files.
 //!
-//! An actuator file is an [`ema::actuator::Actuator`] in TOML: about twenty numbers from a
-//! datasheet and a bench (`hil-sim/actuators/valve.toml` is one to copy). Every controller
-//! setting follows from it ([`Actuator::settings`]); so does the scenario it is judged on
-//! ([`scenario`]): a sequence of four positions across the stroke, timed from its own
-//! settling target, with a 12-bit converter of 1.5 codes of noise and one sample of delay
-//! on every channel, a supply whose internal resistance is an eighth of the coil's, and
-//! the averaged bridge with the PWM resolution a 168 MHz timer gives at its rate.
+//! An actuator file is an [`ema::control::actuator::Actuator`] in TOML: about twenty
+//! numbers from a datasheet and a bench (`hil-sim/actuators/valve.toml` is one to copy).
+//! Every controller setting follows from it ([`Actuator::settings`]); so does the scenario
+//! it is judged on ([`scenario`]): a sequence of four positions across the stroke, timed
+//! from its own settling target, with a 12-bit converter of 1.5 codes of noise and one
+//! sample of delay on every channel, a supply whose internal resistance is an eighth of the
+//! coil's, and the averaged bridge with the PWM resolution a 168 MHz timer gives at its
+//! rate.
 //!
 //! A tuned file is the same file with a `[tuning]` section, which `hil-sim tune` writes
 //! ([`tuned_text`]); the firmware build takes either (`EMA_ACTUATOR=path cargo fw`).
@@ -23,9 +24,9 @@
 
 use std::path::Path;
 
-use ema::actuator::Actuator;
-use ema::shaping;
-use ema::shaping::SETTLING_CLAIM_S;
+use ema::control::actuator::Actuator;
+use ema::control::shaping;
+use ema::control::shaping::SETTLING_CLAIM_S;
 
 use crate::catalog::LoadError;
 use crate::hal::{Adc, Supply};
@@ -194,8 +195,9 @@ pub fn minimum_move_s(settings: &ema::control::Settings, from_m: f64, to_m: f64)
     ))
 }
 
-/// The settling target of a move ([`ema::shaping::Config::settling_target_s`]), or the
-/// paper's 0.2 s for settings without reference shaping (the paper's reproduction) \[s\].
+/// The settling target of a move ([`ema::control::shaping::Config::settling_target_s`]), or
+/// the paper's 0.2 s for settings without reference shaping (the paper's reproduction)
+/// \[s\].
 #[must_use]
 #[expect(clippy::cast_possible_truncation)]
 pub fn settling_target_s(settings: &ema::control::Settings, from_m: f64, to_m: f64) -> f64 {
@@ -284,7 +286,7 @@ pub fn scenario(name: &str, act: &Actuator) -> Result<Scenario, Error> {
 /// The tuned file: `text` (an actuator file as written) without any `[tuning]` section,
 /// followed by one holding `tuning`.
 #[must_use]
-pub fn tuned_text(text: &str, tuning: &ema::actuator::Tuning, note: &str) -> String {
+pub fn tuned_text(text: &str, tuning: &ema::control::actuator::Tuning, note: &str) -> String {
     let mut out = String::new();
     let mut skipping = false;
     for line in text.lines() {

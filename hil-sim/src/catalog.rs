@@ -212,7 +212,11 @@ fn from_actuator(text: &str, origin: &str, name: &str) -> Result<Scenario, LoadE
 }
 
 /// An actuator's evaluation scenario, checked.
-fn checked(act: &ema::actuator::Actuator, origin: &str, name: &str) -> Result<Scenario, LoadError> {
+fn checked(
+    act: &ema::control::actuator::Actuator,
+    origin: &str,
+    name: &str,
+) -> Result<Scenario, LoadError> {
     let invalid = |error| LoadError::Invalid {
         origin: origin.to_owned(),
         error,

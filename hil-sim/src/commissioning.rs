@@ -1,8 +1,8 @@
-//! The board's commissioning routine (`ema::commission`) against simulated actuators: the
-//! core's identification ticking as the control interrupt runs it (convert, identify,
-//! drive the board's bridge on the mock pins), the converter with its typical noise,
-//! quantisation and delay, the plant's RK4 with its end stops. The routine starts from the
-//! file; the plant is the file's, or one drawn wider than the file (see [`Draw`]).
+//! The board's commissioning routine (`ema::device::commission`) against simulated
+//! actuators: the core's identification ticking as the control interrupt runs it (convert,
+//! identify, drive the board's bridge on the mock pins), the converter with its typical
+//! noise, quantisation and delay, the plant's RK4 with its end stops. The routine starts
+//! from the file; the plant is the file's, or one drawn wider than the file (see [`Draw`]).
 //!
 //! What is judged against the plant's own values: the resistance, the inductance at both
 //! stops (the plant's fringing included), the position readings at both stops (the drawn
@@ -34,9 +34,9 @@
 //! and the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).
 
-use ema::actuator::Actuator;
-use ema::bridge::HBridge;
-use ema::commission::{Abort, Identification, Plan, Report, Step};
+use ema::control::actuator::Actuator;
+use ema::control::bridge::HBridge;
+use ema::device::commission::{Abort, Identification, Plan, Report, Step};
 use rand::Rng;
 
 use crate::bench::board::scenario;
@@ -197,7 +197,7 @@ pub fn measured(
     let circuit = mechanics.map(|m| m.circuit);
     let mut moved = 1.0;
     match (circuit, a.magnetics) {
-        (Some(c), file @ ema::actuator::Magnetics::Geometry { .. }) => {
+        (Some(c), file @ ema::control::actuator::Magnetics::Geometry { .. }) => {
             a.magnetics = c.geometry(a.coil.turns, file);
         }
         (circuit, _) => {
@@ -220,7 +220,7 @@ pub fn measured(
             if intercept < IRON_SHARE * rho_c {
                 moved = ((1.0 - IRON_SHARE + q) * rho_c / (q * rho_o)).sqrt();
             }
-            a.magnetics = ema::actuator::Magnetics::Inductance {
+            a.magnetics = ema::control::actuator::Magnetics::Inductance {
                 open_h: open_h / moved,
                 closed_h: closed_h * moved,
             };
@@ -496,7 +496,7 @@ pub const RETRY_GAIN_SHARE: f32 = 0.6;
 ///
 /// # Errors
 /// An actuator whose tuning does not derive.
-pub fn hold_tuning(m: &Actuator, attempt: u32) -> Result<ema::actuator::Tuning, Error> {
+pub fn hold_tuning(m: &Actuator, attempt: u32) -> Result<ema::control::actuator::Tuning, Error> {
     let mut t = m.tuning_or_default().map_err(Error::Actuator)?;
     for _ in 0..attempt {
         t.alpha_per_s *= RETRY_GAIN_SHARE;
@@ -697,11 +697,11 @@ pub fn hold_probe(a: &Actuator) -> crate::scenario::InductanceProbe {
     }
 }
 
-/// The inductance that inductance probes ([`ema::control::Probe`]) read, from the board's drive
-/// `u_v` (the voltage set at each tick, applied over the period after it) and its current
-/// readings `i_a` (each `delay` periods old), both from a probe's first tick, for each of
-/// the `runs`; `half_ticks` at each level, `r_ohm` the coil's resistance, `ts_s` the
-/// period: `(inductance [H], two standard errors of it [H])`.
+/// The inductance that inductance probes ([`ema::control::Probe`]) read, from the board's
+/// drive `u_v` (the voltage set at each tick, applied over the period after it) and its
+/// current readings `i_a` (each `delay` periods old), both from a probe's first tick, for
+/// each of the `runs`; `half_ticks` at each level, `r_ohm` the coil's resistance, `ts_s`
+/// the period: `(inductance [H], two standard errors of it [H])`.
 ///
 /// With the armature all but still and the voltage held over each period, the coil's
 /// current obeys `i(k+1) - i(k) = (1 - a) (u(k) / R - i(k))`, `a = exp(-Ts R / L)`,
@@ -1001,9 +1001,9 @@ pub const STOP_INDUCTANCE_CLASS: f64 = 0.01;
 /// growth: on 1000 drawn 12 V solenoids, whose surface is constant, a growth kept at
 /// three deviations read 4 springs more than 5 % off (up to 8.4 %), at five one to
 /// three in a thousand (up to 5.4 %, on two sets of draws; with the open stop's probe
-/// twice as long, [`ema::commission::PROBE_READINGS`], none and one, 5.2 %). A growth
-/// that matters is still kept: a pole whose sides grow by 0.3 of the gap, 14 % off the
-/// stops' line, is read within 2 % of its growth (the tests).
+/// twice as long, [`ema::device::commission::PROBE_READINGS`], none and one, 5.2 %). A
+/// growth that matters is still kept: a pole whose sides grow by 0.3 of the gap, 14 % off
+/// the stops' line, is read within 2 % of its growth (the tests).
 pub const GROWTH_SIGNIFICANCE: f64 = 5.0;
 
 /// The largest surface growth [`Circuit::fit`] considers, as `q g` at the open stop: at
@@ -1114,8 +1114,12 @@ impl Circuit {
     /// `fringing_spread = q a` and the iron's reluctance `c0 N^2`.
     #[must_use]
     #[expect(clippy::cast_possible_truncation)]
-    pub fn geometry(&self, turns: f32, file: ema::actuator::Magnetics) -> ema::actuator::Magnetics {
-        let ema::actuator::Magnetics::Geometry {
+    pub fn geometry(
+        &self,
+        turns: f32,
+        file: ema::control::actuator::Magnetics,
+    ) -> ema::control::actuator::Magnetics {
+        let ema::control::actuator::Magnetics::Geometry {
             gaps,
             pole_a_m,
             pole_b_m,
@@ -1127,12 +1131,12 @@ impl Circuit {
         };
         let n2 = f64::from(turns).powi(2);
         let surface =
-            f64::from(gaps) / (f64::from(ema::model::MU0_H_PER_M) * self.gap_per_h_m * n2);
+            f64::from(gaps) / (f64::from(ema::control::model::MU0_H_PER_M) * self.gap_per_h_m * n2);
         let scale = (surface
             / (f64::from(fringing_coefficient) * f64::from(pole_a_m) * f64::from(pole_b_m)))
         .sqrt();
         let side = scale * f64::from(pole_a_m);
-        ema::actuator::Magnetics::Geometry {
+        ema::control::actuator::Magnetics::Geometry {
             gaps,
             pole_a_m: side as f32,
             pole_b_m: (scale * f64::from(pole_b_m)) as f32,
@@ -1234,10 +1238,10 @@ fn gaps(a: &Actuator) -> (f64, f64) {
 /// The pole's aspect `b / a` in file `a` (a square one for the two-inductance form).
 fn aspect(a: &Actuator) -> f64 {
     match a.magnetics {
-        ema::actuator::Magnetics::Geometry {
+        ema::control::actuator::Magnetics::Geometry {
             pole_a_m, pole_b_m, ..
         } => f64::from(pole_b_m) / f64::from(pole_a_m),
-        ema::actuator::Magnetics::Inductance { .. } => 1.0,
+        ema::control::actuator::Magnetics::Inductance { .. } => 1.0,
     }
 }
 

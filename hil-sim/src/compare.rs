@@ -15,8 +15,8 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use ema::control::law;
 use ema::control::Settings;
-use ema::law;
 
 use crate::error::Error;
 use crate::hal;
@@ -24,7 +24,7 @@ use crate::targets::{Targets, Worst};
 use crate::{run, Scenario};
 
 /// The laws compared: every law of the core.
-pub const LAWS: [&str; 3] = ema::law::NAMES;
+pub const LAWS: [&str; 3] = ema::control::law::NAMES;
 /// The ISR rates \[Hz\].
 pub const RATES_HZ: [f64; 3] = [10e3, 20e3, 50e3];
 /// The supplies \[V\].

@@ -28,12 +28,12 @@
 //! figures, as a datasheet gives it, before the rules are checked.
 //!
 //! Physical consistency is a rule, not a draw: a drawn actuator is kept only when it meets
-//! the rules of [`ema::actuator::Consistency`] (its current holds it anywhere on the stroke
-//! with a margin, its supply drives its rated current through the hot coil, its iron is
-//! not saturated where it is held, its magnet pulls at every gap on every surface the
-//! tolerance allows) and [`Actuator::settings`] derives every setting;
-//! otherwise the generator draws again, and counts why ([`Drawn::redrawn`]). A
-//! hand-written file that breaks a rule is refused by `tune` with the rule named.
+//! the rules of [`ema::control::actuator::Consistency`] (its current holds it anywhere on
+//! the stroke with a margin, its supply drives its rated current through the hot coil, its
+//! iron is not saturated where it is held, its magnet pulls at every gap on every surface
+//! the tolerance allows) and [`Actuator::settings`] derives every setting; otherwise the
+//! generator draws again, and counts why ([`Drawn::redrawn`]). A hand-written file that
+//! breaks a rule is refused by `tune` with the rule named.
 //!
 //! Actuator `k` of seed `s` is the same whatever the number drawn: each has its own
 //! random stream ([`crate::montecarlo::draw_seed`] of both).
@@ -52,10 +52,10 @@
 
 use std::collections::BTreeMap;
 
-use ema::actuator::{
+use ema::control::actuator::{
     Actuator, Board, Coil, Magnetics, Mechanics, Tolerances, BREAK_PER_PEAK, RIPPLE_SHARE,
 };
-use ema::model::MU0_H_PER_M;
+use ema::control::model::MU0_H_PER_M;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
@@ -357,7 +357,7 @@ fn candidate(rng: &mut impl Rng) -> Result<(Actuator, &'static str), &'static st
             turns: trial_turns as f32,
             rated_current_a: 1.0,
             peak_current_a: 1.5,
-            peak_time_s: ema::actuator::DEFAULT_PEAK_TIME_S,
+            peak_time_s: ema::control::actuator::DEFAULT_PEAK_TIME_S,
         },
         magnetics,
         board: board(supply, 1.5),
@@ -377,7 +377,7 @@ fn candidate(rng: &mut impl Rng) -> Result<(Actuator, &'static str), &'static st
     );
     // R I = N^2 / (rho tau) * NI / N = N NI / (rho tau): the turns that put the hot coil's
     // drop at the drawn share of the bridge's largest voltage.
-    let bridge_v = supply * f64::from(ema::bridge::max_modulation(rate as f32));
+    let bridge_v = supply * f64::from(ema::control::bridge::max_modulation(rate as f32));
     let hot = 1.0 + f64::from(tolerance.resistance);
     let turns = (drop_share * bridge_v * closed_reluctance * coil_s / (hot * rated_ampere_turns))
         .round()
@@ -400,7 +400,7 @@ fn candidate(rng: &mut impl Rng) -> Result<(Actuator, &'static str), &'static st
         turns: turns as f32,
         rated_current_a: sig3(rated),
         peak_current_a: sig3(peak),
-        peak_time_s: ema::actuator::DEFAULT_PEAK_TIME_S,
+        peak_time_s: ema::control::actuator::DEFAULT_PEAK_TIME_S,
     };
     act.board = board(supply, f64::from(sig3(peak)));
     let circuit = match (kind, growing) {

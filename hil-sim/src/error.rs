@@ -16,10 +16,10 @@ pub enum Error {
         reason: String,
     },
     /// The controller settings, refused by `ema::control::Settings::build`.
-    Controller(ema::config::Error),
-    /// An actuator file, refused by `ema::actuator::Actuator::settings` (the name is the
-    /// field's in the file).
-    Actuator(ema::config::Error),
+    Controller(ema::control::config::Error),
+    /// An actuator file, refused by `ema::control::actuator::Actuator::settings` (the name
+    /// is the field's in the file).
+    Actuator(ema::control::config::Error),
 }
 
 impl Error {
@@ -58,8 +58,8 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {}
 
-impl From<ema::config::Error> for Error {
-    fn from(e: ema::config::Error) -> Self {
+impl From<ema::control::config::Error> for Error {
+    fn from(e: ema::control::config::Error) -> Self {
         Error::Controller(e)
     }
 }

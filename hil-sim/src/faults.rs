@@ -14,7 +14,7 @@
 //! current sensor where the current changes fastest. Frozen in a steady phase, a current
 //! reading is found only once the loop has wound up against it.
 //!
-//! Two cases exercise the firmware's guard ([`ema::guard`]) and window watchdog
+//! Two cases exercise the firmware's guard ([`ema::device::guard`]) and window watchdog
 //! ([`crate::hal::Watchdog`]): four missed interrupts are seen by the guard when the
 //! interrupt runs again (the gap is five periods), and an interrupt that stops for good,
 //! while the coil is driven, is ended by the watchdog, which coasts the bridge at the first
@@ -28,8 +28,8 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use ema::bridge::Mode;
-use ema::supervisor::Fault;
+use ema::control::bridge::Mode;
+use ema::control::supervisor::Fault;
 
 use crate::error::Error;
 use crate::plant::Surface;
@@ -321,14 +321,15 @@ pub fn evaluate(case: &Case) -> Result<Outcome, Error> {
 /// stays where it was at the injection, exactly what a healthy sensor could read: it
 /// becomes observable at the first sample at which the true position or current has
 /// moved from its value at the injection by more than the converter's noise allowance
-/// ([`ema::actuator::NOISE_ALLOWANCE_CODES`] codes of that channel, four standard
+/// ([`ema::control::actuator::NOISE_ALLOWANCE_CODES`] codes of that channel, four standard
 /// deviations of the difference of two readings). No detector can name it before; a
 /// frozen reading whose quantity never moves within the run is not observable in it.
 /// Every other fault changes what the tick reads, or the coil, at its injection: 0.
 #[must_use]
 pub fn observable_after_s(case: &Case, r: &crate::Run) -> Option<f64> {
     let sense = &case.scenario.controller.sense;
-    let allowance = |scale: f32| f64::from(ema::actuator::NOISE_ALLOWANCE_CODES * scale.abs());
+    let allowance =
+        |scale: f32| f64::from(ema::control::actuator::NOISE_ALLOWANCE_CODES * scale.abs());
     let (quantity, allowance): (fn(&crate::Sample) -> f64, f64) =
         match case.scenario.faults.first().map(|f| f.fault) {
             Some(Injected::PositionStuck) => (|s| s.x_m, allowance(sense.position.scale)),

@@ -1,24 +1,25 @@
 //! Golden traces for the Cortex-M4F: the simulator records, tick by tick, the converter
 //! frames and set points it gave the core and every output the core produced (as bit
-//! patterns, `ema::trace` format); the emulated target replays the inputs through its own
-//! `Config::tick` and must reproduce every output bit (`tests/qemu_golden.rs`).
+//! patterns, `ema::control::trace` format); the emulated target replays the inputs through
+//! its own `Config::tick` and must reproduce every output bit (`tests/qemu_golden.rs`).
 //!
-//! One trace per reference case of `ema::trace::CASES` (every law variant), each on the
-//! product's realistic conditions: a plant drawn from the uncertainty set (fixed seed),
-//! converter noise and one sample of delay, a 24 V supply with its internal resistance,
-//! the firmware's PWM resolution (TIM1 at 20 kHz from 168 MHz: [`BOARD_MAX_DUTY`], 4201 counts), the product's
-//! sequence of steps, a re-arm at the tick after any latched fault (the paper's law trips
-//! its current checks every few ticks at 20 kHz), and at the end the current sensor on its
-//! rail, so that the trace also covers the fault path. 10 000 ticks (0.5 s): three traces
-//! of 270 KB are what the emulated chip's 1 MiB of flash holds beside the test program.
+//! One trace per reference case of `ema::control::trace::CASES` (every law variant), each
+//! on the product's realistic conditions: a plant drawn from the uncertainty set (fixed
+//! seed), converter noise and one sample of delay, a 24 V supply with its internal
+//! resistance, the firmware's PWM resolution (TIM1 at 20 kHz from 168 MHz:
+//! [`BOARD_MAX_DUTY`], 4201 counts), the product's sequence of steps, a re-arm at the tick
+//! after any latched fault (the paper's law trips its current checks every few ticks at 20
+//! kHz), and at the end the current sensor on its rail, so that the trace also covers the
+//! fault path. 10 000 ticks (0.5 s): three traces of 270 KB are what the emulated chip's 1
+//! MiB of flash holds beside the test program.
 //!
 //! `cargo run -p hil-sim --release -- golden` writes them to `tests/golden/`; the tests
 //! check that the saved files are exactly what this module produces now.
 
 use std::path::Path;
 
-use ema::bridge::BOARD_MAX_DUTY;
-use ema::trace::{Case, Header, CASES, MIN_GOLDEN_TICKS};
+use ema::control::bridge::BOARD_MAX_DUTY;
+use ema::control::trace::{Case, Header, CASES, MIN_GOLDEN_TICKS};
 
 use crate::error::Error;
 use crate::hal::Adc;

@@ -1,6 +1,6 @@
-//! Mock hardware: the PWM channel and pins the core's [`ema::bridge::HBridge`] drives, the
-//! bridge and supply they switch, the converter that produces raw ADC codes, and the
-//! firmware's window watchdog.
+//! Mock hardware: the PWM channel and pins the core's [`ema::control::bridge::HBridge`]
+//! drives, the bridge and supply they switch, the converter that produces raw ADC codes,
+//! and the firmware's window watchdog.
 //!
 //! The mock PWM and pins share their state with a [`Lines`] handle through
 //! `Rc<Cell<..>>`; the runner reads [`Lines::switches`] after each tick to know what voltage
@@ -22,8 +22,8 @@
 //!
 //! The [`Supply`] is a source `V_s` behind an internal resistance: `Vbus = V_s - R_int I_bus`.
 //!
-//! The [`Watchdog`] is fed by the ticks the guard ([`ema::guard`]) finds on time; when
-//! nothing feeds it for its early-wakeup time, it coasts the bridge, as the firmware's
+//! The [`Watchdog`] is fed by the ticks the guard ([`ema::device::guard`]) finds on time;
+//! when nothing feeds it for its early-wakeup time, it coasts the bridge, as the firmware's
 //! window-watchdog interrupt does.
 
 use std::cell::Cell;
@@ -31,7 +31,7 @@ use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::rc::Rc;
 
-use ema::sense::{Calibration, Channel, Frame, ADC_MAX_CODE};
+use ema::control::sense::{Calibration, Channel, Frame, ADC_MAX_CODE};
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 use rand::SeedableRng;
@@ -97,7 +97,8 @@ pub struct Lines {
 }
 
 /// What the bridge's switches do with the lines as they are (the core's
-/// [`ema::bridge::Drive`] is what the tick set the bridge to; this is what the plant sees).
+/// [`ema::control::bridge::Drive`] is what the tick set the bridge to; this is what the
+/// plant sees).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Switches {
     /// Enable low: all switches open.
@@ -115,15 +116,15 @@ impl Switches {
     /// The drive a bridge in `mode` with compare value `duty` out of `max_duty` produces
     /// (for replaying a recorded trace).
     #[must_use]
-    pub fn from_mode(mode: ema::bridge::Mode, duty: u16, max_duty: u16) -> Self {
+    pub fn from_mode(mode: ema::control::bridge::Mode, duty: u16, max_duty: u16) -> Self {
         let fraction = f64::from(duty.min(max_duty)) / f64::from(max_duty.max(1));
         match mode {
-            ema::bridge::Mode::Coast => Switches::Coast,
-            ema::bridge::Mode::Forward => Switches::Driven {
+            ema::control::bridge::Mode::Coast => Switches::Coast,
+            ema::control::bridge::Mode::Forward => Switches::Driven {
                 forward: true,
                 fraction,
             },
-            ema::bridge::Mode::Reverse => Switches::Driven {
+            ema::control::bridge::Mode::Reverse => Switches::Driven {
                 forward: false,
                 fraction,
             },
@@ -259,7 +260,8 @@ pub const REFERENCE_APB1_HZ: u32 = 42_000_000;
 
 /// The firmware's window watchdog as the loop sees it: fed by on-time ticks, it coasts
 /// the bridge at the latest moment its early-wakeup interrupt can come after the last
-/// feed ([`ema::guard::Watchdog::early_wakeup_max_ns`]), checked at each sample instant.
+/// feed ([`ema::device::guard::Watchdog::early_wakeup_max_ns`]), checked at each sample
+/// instant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Watchdog {
     bite_after_ns: u64,
@@ -268,15 +270,15 @@ pub struct Watchdog {
 
 impl Watchdog {
     /// The reference board's window watchdog for ticks at `rate_hz`: quiet for
-    /// [`ema::guard::WATCHDOG_QUIET_PERIODS`] periods after a feed (the firmware's
+    /// [`ema::device::guard::WATCHDOG_QUIET_PERIODS`] periods after a feed (the firmware's
     /// choice, `board::WINDOW_WATCHDOG`), fed at time 0.
     #[must_use]
     pub fn reference(rate_hz: f64) -> Self {
-        let quiet_ns = f64::from(ema::guard::WATCHDOG_QUIET_PERIODS) * 1e9 / rate_hz;
+        let quiet_ns = f64::from(ema::device::guard::WATCHDOG_QUIET_PERIODS) * 1e9 / rate_hz;
         // Bounded to [0, u32::MAX] before the cast.
         #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let quiet_ns = quiet_ns.round().clamp(0.0, f64::from(u32::MAX)) as u32;
-        let w = ema::guard::Watchdog::at_least(REFERENCE_APB1_HZ, quiet_ns);
+        let w = ema::device::guard::Watchdog::at_least(REFERENCE_APB1_HZ, quiet_ns);
         Self {
             bite_after_ns: u64::from(w.early_wakeup_max_ns()),
             last_feed_ns: 0,
@@ -454,12 +456,13 @@ impl Default for Adc {
 }
 
 impl Adc {
-    /// A typical converter: 12 bits, the board's noise ([`ema::sense::NOISE_RMS_CODES`],
-    /// 1.5 codes RMS) on every channel, one sample of delay, seed 1.
+    /// A typical converter: 12 bits, the board's noise
+    /// ([`ema::control::sense::NOISE_RMS_CODES`], 1.5 codes RMS) on every channel, one
+    /// sample of delay, seed 1.
     #[must_use]
     pub fn typical() -> Self {
         let noise = ChannelError {
-            noise_rms_code: f64::from(ema::sense::NOISE_RMS_CODES),
+            noise_rms_code: f64::from(ema::control::sense::NOISE_RMS_CODES),
             ..ChannelError::default()
         };
         Self {
@@ -587,7 +590,7 @@ impl Converter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ema::bridge::{HBridge, Mode};
+    use ema::control::bridge::{HBridge, Mode};
 
     #[test]
     fn the_core_bridge_drives_the_mock_lines() {
@@ -625,7 +628,10 @@ mod tests {
                 ch.gain_error.abs() <= 0.005 && ch.offset_code.abs() <= 2.0,
                 "{ch:?}"
             );
-            assert_eq!(ch.noise_rms_code, f64::from(ema::sense::NOISE_RMS_CODES));
+            assert_eq!(
+                ch.noise_rms_code,
+                f64::from(ema::control::sense::NOISE_RMS_CODES)
+            );
         }
         assert_ne!(adc.position, adc.current);
         // Without noise, a reading held on the reference puts the armature at the
@@ -692,7 +698,7 @@ mod tests {
         assert!((f64::from(m.vbus_v) - 150.0).abs() <= 0.5 * 225.0 / 4096.0 + 1e-4);
         assert_eq!(
             f,
-            cal.frame(&ema::sense::Measurement {
+            cal.frame(&ema::control::sense::Measurement {
                 x_m: 2e-3,
                 i_a: 6.0,
                 vbus_v: 150.0

@@ -9,7 +9,8 @@
 //! repeats a scenario over plants drawn from the uncertainty set.
 //!
 //! The controller is only ever reached through `ema::control::Settings` ->
-//! `Config` -> `tick`, so any law the core offers (`ema::law::Settings`) runs unchanged.
+//! `Config` -> `tick`, so any law the core offers (`ema::control::law::Settings`) runs
+//! unchanged.
 //!
 //! ## Example: the paper's example at a 100 kHz ISR
 //!
@@ -51,7 +52,7 @@
 //! | [`catalog`] | scenario files: the embedded defaults, loading by name or from a file |
 //! | [`compare`] | the comparison of the laws over ISR rates and supplies |
 //! | [`faults`] | fault injection: the fault the supervisor must name, and how fast |
-//! | [`golden`] | golden traces for the Cortex-M4F (`ema::trace` format) |
+//! | [`golden`] | golden traces for the Cortex-M4F (`ema::control::trace` format) |
 //! | [`lyapunov`] | Theorem 1 with a general Lyapunov matrix |
 //! | [`targets`] | the product's performance targets and their evaluation |
 //! | [`mod@tune`] | the practical law's gains for any actuator |

@@ -31,7 +31,7 @@
 //! Samples with a latched fault count in every metric (the bridge coasts then); they are
 //! counted separately in `faulted_samples`.
 
-use ema::supervisor::Fault;
+use ema::control::supervisor::Fault;
 use serde::{Deserialize, Serialize};
 
 use crate::plant::Params;
@@ -133,7 +133,10 @@ const BOUNDS_POINTS: u32 = 400;
 /// # Errors
 /// A controller plant whose envelope cannot be built.
 #[expect(clippy::cast_possible_truncation)]
-pub fn bounds_check(controller: &ema::model::Plant, plant: &Params) -> Result<BoundsCheck, Error> {
+pub fn bounds_check(
+    controller: &ema::control::model::Plant,
+    plant: &Params,
+) -> Result<BoundsCheck, Error> {
     let env = controller.envelope()?;
     let mut c = BoundsCheck {
         mu_lo_ratio_min: f64::INFINITY,
@@ -477,7 +480,7 @@ mod tests {
 
     #[test]
     fn nominal_plant_is_bracketed_with_margins() {
-        let c = bounds_check(&ema::model::Plant::paper(), &Params::paper()).unwrap();
+        let c = bounds_check(&ema::control::model::Plant::paper(), &Params::paper()).unwrap();
         assert!(c.brackets, "{:?}", c.warning);
         // S = S_nom, bounds S (1 +- 0.2): mu / mu_lo = 1.2 where rho_0 is negligible.
         assert!(
@@ -490,10 +493,10 @@ mod tests {
 
     /// A plant with surfaces outside the bounds, and one whose energy-consistent mu falls
     /// under mu_lo although its surface stays inside them: the bounds' construction ignores
-    /// how the surface grows with the gap ([`ema::model`]).
+    /// how the surface grows with the gap ([`ema::control::model`]).
     #[test]
     fn plants_outside_the_bounds_are_flagged() {
-        let controller = ema::model::Plant::paper();
+        let controller = ema::control::model::Plant::paper();
         let small = Params {
             gaps: vec![
                 Surface::Constant {
@@ -518,10 +521,10 @@ mod tests {
         // The paper's rectangular pole S(g) = (7 mm + g)^2 with bounds +-20 % around its
         // range over the stroke: the frozen mu is inside, the energy-consistent one,
         // mu_frozen (a - g)/(a + g), is not at the large gaps.
-        let magnetics = ema::model::Magnetics::paper_rectangular();
-        let rect = ema::model::Plant {
+        let magnetics = ema::control::model::Magnetics::paper_rectangular();
+        let rect = ema::control::model::Plant {
             magnetics,
-            bounds: ema::model::Bounds::around(&magnetics.fringing, (0.0, 4e-3), 0.2, 0.2),
+            bounds: ema::control::model::Bounds::around(&magnetics.fringing, (0.0, 4e-3), 0.2, 0.2),
             ..controller
         };
         let frozen = Params::from_core(&rect, ForceModel::Frozen);

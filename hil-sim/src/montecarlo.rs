@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use ema::bridge::Mode;
+use ema::control::bridge::Mode;
 
 use crate::hal::{sensor_position_error_m, Adc, CalibrationClass};
 use crate::metrics::Metrics;

@@ -177,10 +177,10 @@ impl Convention {
     /// The core's convention with the same meaning.
     #[must_use]
     #[expect(clippy::cast_possible_truncation)]
-    pub fn to_core(&self) -> ema::model::Convention {
+    pub fn to_core(&self) -> ema::control::model::Convention {
         match *self {
-            Convention::Paper => ema::model::Convention::Paper,
-            Convention::Physical { gap_at_zero_m } => ema::model::Convention::Physical {
+            Convention::Paper => ema::control::model::Convention::Paper,
+            Convention::Physical { gap_at_zero_m } => ema::control::model::Convention::Physical {
                 gap_at_zero_m: gap_at_zero_m as f32,
             },
         }
@@ -188,10 +188,10 @@ impl Convention {
 
     /// The same convention as the core's.
     #[must_use]
-    pub fn from_core(c: &ema::model::Convention) -> Self {
+    pub fn from_core(c: &ema::control::model::Convention) -> Self {
         match *c {
-            ema::model::Convention::Paper => Convention::Paper,
-            ema::model::Convention::Physical { gap_at_zero_m } => Convention::Physical {
+            ema::control::model::Convention::Paper => Convention::Paper,
+            ema::control::model::Convention::Physical { gap_at_zero_m } => Convention::Physical {
                 gap_at_zero_m: f64::from(gap_at_zero_m),
             },
         }
@@ -288,7 +288,7 @@ pub const PAPER_FRINGING_COEFFICIENT: f64 = 1.16;
 
 impl Params {
     /// The paper's actuator (Table I) with the core's default geometry
-    /// (`ema::model::Plant::paper()`): two equal gaps of constant surface
+    /// (`ema::control::model::Plant::paper()`): two equal gaps of constant surface
     /// `1.16 x 49 mm^2`, so `rho_x = 2 / (mu0 56.84 mm^2) = 2.8e10 1/(H m)`,
     /// `rho_0 = 630 1/H`, `N = 70`, `m = 0.1 kg`, `K = 120 N/m`, `lambda = 5 N s/m`,
     /// `R = 0.4 ohm`, 4 mm stroke, `paper` convention, `frozen` force, no saturation.
@@ -317,8 +317,8 @@ impl Params {
     /// to `f64`), with the given force model. `gaps` equal airgaps of the core's surface
     /// model.
     #[must_use]
-    pub fn from_core(plant: &ema::model::Plant, force: ForceModel) -> Self {
-        use ema::model::Fringing;
+    pub fn from_core(plant: &ema::control::model::Plant, force: ForceModel) -> Self {
+        use ema::control::model::Fringing;
         let m = &plant.magnetics;
         let surface = match m.fringing {
             Fringing::Coefficient { alpha, pole_m2 } => Surface::Constant {
@@ -832,7 +832,7 @@ mod tests {
 
     #[test]
     fn matches_the_core_default_plant() {
-        let core = ema::model::Plant::paper();
+        let core = ema::control::model::Plant::paper();
         let ours = Params::paper();
         let widened = Params::from_core(&core, ForceModel::Frozen);
         for g in [0.0, 1e-3, 2.5e-3, 4e-3] {

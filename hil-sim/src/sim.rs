@@ -6,14 +6,13 @@
 //! `[t_k, t_k+1)` (zero-order hold, no computation delay; a converter delay is set in the
 //! sensor model).
 //!
-//! Every tick runs through the firmware's guard ([`ema::guard::Config::run`]) at the
-//! simulated time `t_k` in nanoseconds, and the ticks it finds on time feed a model of the
-//! firmware's window watchdog ([`hal::Watchdog`]). A missed deadline
+//! Every tick runs through the firmware's guard ([`ema::device::guard::Config::run`]) at
+//! the simulated time `t_k` in nanoseconds, and the ticks it finds on time feed a model of
+//! the firmware's window watchdog ([`hal::Watchdog`]). A missed deadline
 //! ([`Injected::MissedDeadlines`]) is a tick that does not run: the bridge keeps its last
-//! state, the guard sees the gap when the interrupt runs again and latches the overrun,
-//! and if the stall outlasts the watchdog, the watchdog coasts the bridge first (the
-//! firmware then resets and starts with the overrun latched, which is what the run
-//! records).
+//! state, the guard sees the gap when the interrupt runs again and latches the overrun, and
+//! if the stall outlasts the watchdog, the watchdog coasts the bridge first (the firmware
+//! then resets and starts with the overrun latched, which is what the run records).
 //!
 //! The board's over-current comparator on the timer's break input
 //! ([`crate::scenario::Bridge::break_current_a`]) is checked at every substep: once the
@@ -22,10 +21,10 @@
 //! the firmware's does. Between two samples it is the only protection: the sampled trip
 //! sees the current once a period.
 
-use ema::bridge::{Drive, HBridge, Mode};
-use ema::guard::{self, End, Start};
-use ema::sense::Measurement;
-use ema::supervisor::Fault;
+use ema::control::bridge::{Drive, HBridge, Mode};
+use ema::control::sense::Measurement;
+use ema::control::supervisor::Fault;
+use ema::device::guard::{self, End, Start};
 use serde::{Deserialize, Serialize};
 
 use crate::hal::{self, Supply, Switches};
@@ -134,14 +133,14 @@ pub fn run(scenario: &Scenario) -> Result<Run, Error> {
 }
 
 /// What [`run_with`] records for golden traces: every tick's frame, set point and outputs
-/// in the `ema::trace` format; a latched fault is re-armed at the next tick when
+/// in the `ema::control::trace` format; a latched fault is re-armed at the next tick when
 /// `rearm_after_fault` (so that a trace keeps exercising the whole path).
 #[derive(Debug, Default)]
 pub struct Recording {
     /// Re-arm the controller at the tick after a latched fault.
     pub rearm_after_fault: bool,
     /// The records, one per tick.
-    pub records: Vec<ema::trace::Record>,
+    pub records: Vec<ema::control::trace::Record>,
 }
 
 /// As [`run`], recording every tick into `recording` when given.
@@ -267,7 +266,7 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
                                 None => config.tick(ctl, bridge, &frame, r as f32),
                                 Some(rec) => {
                                     let rearm = rec.rearm_after_fault && last.fault.is_some();
-                                    let (status, record) = ema::trace::tick_record(
+                                    let (status, record) = ema::control::trace::tick_record(
                                         &config, ctl, bridge, &frame, r as f32, rearm,
                                     );
                                     rec.records.push(record);
@@ -719,7 +718,7 @@ fn count(x: f64) -> u32 {
 
 /// Serialises a bridge mode as `coast`, `forward` or `reverse`.
 pub mod mode_name {
-    use ema::bridge::Mode;
+    use ema::control::bridge::Mode;
     use serde::{Deserialize, Deserializer, Serializer};
 
     /// Serde serialiser.
@@ -745,7 +744,7 @@ pub mod mode_name {
 
 /// Serialises an optional fault as its name (`over_current`), or an empty string.
 pub mod fault_name {
-    use ema::supervisor::Fault;
+    use ema::control::supervisor::Fault;
     use serde::{Deserialize, Deserializer, Serializer};
 
     /// Serde serialiser.

@@ -19,7 +19,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use ema::actuator::RIPPLE_SHARE;
+use ema::control::actuator::RIPPLE_SHARE;
 
 use crate::metrics::Metrics;
 use crate::montecarlo::Draw;
@@ -59,7 +59,7 @@ impl Targets {
         let rated = s.monitors.thermal.map_or_else(
             || {
                 let limit = match s.law {
-                    ema::law::Settings::Practical(g) => g.current_max_a,
+                    ema::control::law::Settings::Practical(g) => g.current_max_a,
                     _ => s.limits.current_trip_a,
                 };
                 f64::from(limit) / (1.0 - f64::from(RIPPLE_SHARE))
@@ -87,7 +87,7 @@ impl Targets {
         self.settling_s
             .get(k)
             .copied()
-            .unwrap_or(f64::from(ema::shaping::SETTLING_CLAIM_S))
+            .unwrap_or(f64::from(ema::control::shaping::SETTLING_CLAIM_S))
     }
 
     /// The longest settling target \[s\].

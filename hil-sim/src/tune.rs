@@ -4,14 +4,15 @@
 //!
 //! 1. **The current loop is fixed by the bounds**: `reach` puts its pole at
 //!    `1 - 0.7 L_lo / L`, never negative over the bounds; `integral` is fixed
-//!    ([`ema::law::practical::REACH`], [`ema::law::practical::INTEGRAL`]).
+//!    ([`ema::control::law::practical::REACH`],
+//!    [`ema::control::law::practical::INTEGRAL`]).
 //! 2. **The search space comes from the actuator** ([`Space::for_actuator`]): `alpha`
 //!    (`alpha1 = alpha2`, error poles `-alpha +- j`) on a half-octave grid through the
 //!    default gain, from a tenth to ten times its mechanical frequency
-//!    ([`ema::actuator::TimeScales::mechanical_rad_s`]), below a tenth of the interrupt
-//!    rate; the observer bandwidth as a multiple of `alpha`; the shaping margin. What the
-//!    coil can follow is found by the simulation, not assumed. No bound is a number tuned
-//!    on one actuator.
+//!    ([`ema::control::actuator::TimeScales::mechanical_rad_s`]), below a tenth of the
+//!    interrupt rate; the observer bandwidth as a multiple of `alpha`; the shaping margin.
+//!    What the coil can follow is found by the simulation, not assumed. No bound is a
+//!    number tuned on one actuator.
 //! 3. **Theorem 1** as the practical law has it ([`crate::lyapunov::Problem::practical`]):
 //!    the error system must be quadratically stable over every force gain the loop can
 //!    meet; a candidate that fails it is not simulated.
@@ -37,7 +38,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use ema::actuator::{Actuator, Tuning};
+use ema::control::actuator::{Actuator, Tuning};
 use ema::control::Settings;
 
 use crate::error::Error;
@@ -119,7 +120,7 @@ pub struct Space {
 pub const SCREEN: f64 = 1.0;
 
 /// Ratio of neighbouring points of the `alpha` grid: half an octave. The grid runs through
-/// the default gain ([`ema::actuator::DEFAULT_ALPHA_PER_W`] times the mechanical
+/// the default gain ([`ema::control::actuator::DEFAULT_ALPHA_PER_W`] times the mechanical
 /// frequency) in these steps both ways until it covers [`ALPHA_LOW_PER_W`] to
 /// [`ALPHA_HIGH_PER_W`], so an untuned file's own gain is always a candidate (15 points).
 pub const ALPHA_STEP: f64 = std::f64::consts::SQRT_2;
@@ -155,7 +156,7 @@ impl Space {
         let ts = act.time_scales().map_err(Error::Actuator)?;
         let w = f64::from(ts.mechanical_rad_s());
         let cap = ALPHA_PER_RATE * 2.0 * std::f64::consts::PI * rate_min_hz;
-        let default = f64::from(ema::actuator::DEFAULT_ALPHA_PER_W);
+        let default = f64::from(ema::control::actuator::DEFAULT_ALPHA_PER_W);
         let steps = |per_w: f64| (per_w / default).ln() / ALPHA_STEP.ln();
         #[expect(clippy::cast_possible_truncation)]
         let (low, high) = (
@@ -295,9 +296,9 @@ pub fn theorem(settings: &Settings, alpha: f64) -> Result<Theorem, Error> {
 /// of three airgaps: the surface constant at the physical lower bound, constant at the
 /// upper bound (frozen force: the two ends of the paper's uncertainty), and growing across
 /// the stroke from the lower bound to the upper one with the energy-consistent force (the
-/// weakest pull the bounds allow at the open end, see `ema::actuator`). 49 plants.
+/// weakest pull the bounds allow at the open end, see `ema::control::actuator`). 49 plants.
 #[must_use]
-pub fn corners(plant: &ema::model::Plant) -> Vec<Params> {
+pub fn corners(plant: &ema::control::model::Plant) -> Vec<Params> {
     let nominal = Params::from_core(plant, ForceModel::Frozen);
     let t = &plant.tolerance;
     // Surfaces just inside the physical bounds (the draw margin of the Monte Carlo).
@@ -912,7 +913,7 @@ mod tests {
     fn theorem_one_holds_for_the_product_gains_and_bounds_the_ball() {
         let s = Settings::practical(20e3, 24.0).unwrap();
         let alpha = match s.law {
-            ema::law::Settings::Practical(g) => f64::from(g.alpha1),
+            ema::control::law::Settings::Practical(g) => f64::from(g.alpha1),
             _ => unreachable!(),
         };
         assert_eq!(
@@ -944,7 +945,7 @@ mod tests {
 
     #[test]
     fn corners_span_the_tolerances() {
-        let p = ema::model::Plant::paper();
+        let p = ema::control::model::Plant::paper();
         let c = corners(&p);
         assert_eq!(c.len(), 49);
         let masses: Vec<f64> = c.iter().map(|p| p.mass_kg).collect();
@@ -959,7 +960,7 @@ mod tests {
 
     #[test]
     fn corner_names_say_which_end_of_each_tolerance() {
-        let c = corners(&ema::model::Plant::paper());
+        let c = corners(&ema::control::model::Plant::paper());
         let nominal = &c[0];
         assert_eq!(corner_name(0), "the nominal plant");
         for (k, q) in c.iter().enumerate().skip(1) {

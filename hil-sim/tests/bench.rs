@@ -9,13 +9,13 @@ mod rig;
 use std::thread;
 use std::time::Duration;
 
-use ema::protocol::{Command, Message, Mode, Refusal, Reply, Source, Value};
-use ema::supervisor::Fault;
+use ema::control::supervisor::Fault;
+use ema::device::protocol::{Command, Message, Mode, Refusal, Reply, Source, Value};
 use hil_sim::bench::board::{Injection, Options};
 use hil_sim::bench::cli::{self, CaptureArgs};
 use rig::Rig;
 
-fn wait_for(rig: &mut Rig, what: &str, f: impl Fn(&ema::protocol::Status<'_>) -> bool) {
+fn wait_for(rig: &mut Rig, what: &str, f: impl Fn(&ema::device::protocol::Status<'_>) -> bool) {
     for _ in 0..500 {
         if f(&rig.status()) {
             return;
@@ -37,7 +37,7 @@ fn the_host_tool_drives_the_virtual_board_through_a_session() {
     assert_eq!(s.params, Source::Defaults);
     assert!((s.vbus_v - 24.0).abs() < 0.1, "{}", s.vbus_v);
     // It says which firmware it runs: the package's version and the commit.
-    assert_eq!(s.build, ema::protocol::Build::THIS);
+    assert_eq!(s.build, ema::device::protocol::Build::THIS);
     assert_eq!(s.build.version, "0.1.0");
     let id = s.build.id;
     assert!(
@@ -278,7 +278,7 @@ fn a_driver_fault_on_the_break_input_holds_the_bridge_off_until_it_is_gone_and_c
 
 /// Ticks of the product's board in `s` seconds.
 fn ticks_in(s: f64) -> u64 {
-    (s * f64::from(ema::actuator::Actuator::PRODUCT.board.rate_hz)) as u64
+    (s * f64::from(ema::control::actuator::Actuator::PRODUCT.board.rate_hz)) as u64
 }
 
 /// In real time, with the link's default timeout (0.5 s): the host tool's heartbeat keeps
@@ -290,7 +290,7 @@ fn an_armed_board_disarms_when_its_host_falls_silent_and_not_before() {
     let mut rig = Rig::with_speed(Options::default(), Some(1.0));
     assert_eq!(
         cli::get(&mut rig.link, "link.timeout_s").unwrap(),
-        Value::Number(ema::liveness::DEFAULT_TIMEOUT_S)
+        Value::Number(ema::device::liveness::DEFAULT_TIMEOUT_S)
     );
     rig.link.done(Command::Arm).unwrap();
     // A second and a half with nothing asked: the heartbeat alone keeps it armed.
@@ -317,7 +317,7 @@ fn an_armed_board_disarms_when_its_host_falls_silent_and_not_before() {
     rig.link
         .done(Command::Set {
             name: "link.on_timeout",
-            value: Value::Choice(ema::liveness::OnTimeout::Hold.index()),
+            value: Value::Choice(ema::device::liveness::OnTimeout::Hold.index()),
         })
         .unwrap();
     rig.link.done(Command::Arm).unwrap();
@@ -484,10 +484,10 @@ fn the_console_runs_line_after_line_and_disarms_at_the_end() {
 /// A save over a stored set this firmware cannot read (a later format) needs `--replace`.
 #[test]
 fn a_save_over_a_set_of_a_later_format_is_refused_by_name() {
-    use ema::protocol::LoadError;
+    use ema::device::protocol::LoadError;
     let later = Source::Fallback(LoadError::Version {
         found: 3,
-        expected: ema::store::FORMAT,
+        expected: ema::device::store::FORMAT,
     });
     let why = cli::save_would_replace(&later).unwrap();
     assert!(

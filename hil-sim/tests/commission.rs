@@ -1,6 +1,7 @@
 //! Commissioning on the virtual board, through the host tool's own serial path: the
-//! board's identification (`ema::commission`, run by the board's interrupt half) against
-//! the simulated coil with the converter's typical noise, its delay and quantisation.
+//! board's identification (`ema::device::commission`, run by the board's interrupt half)
+//! against the simulated coil with the converter's typical noise, its delay and
+//! quantisation.
 //!
 //! Coils drawn up to 30 % either side of the file's resistance (a fixed, printed seed) are
 //! measured within 2 %; actuators drawn wider than their file (resistance, spring with an
@@ -16,8 +17,8 @@
 #[path = "common/rig.rs"]
 mod rig;
 
-use ema::actuator::Actuator;
-use ema::protocol::{Command, Commissioned, Message, Mode, Refusal, Reply};
+use ema::control::actuator::Actuator;
+use ema::device::protocol::{Command, Commissioned, Message, Mode, Refusal, Reply};
 use hil_sim::bench::board::{Injection, Options};
 use hil_sim::bench::cli::{self, CommissionArgs};
 use rand::{Rng, SeedableRng};
@@ -35,7 +36,7 @@ const ACTUATORS: usize = 6;
 /// What this test adds to the shared rig.
 trait Commissioning {
     fn coil(&mut self, r_ohm: f64);
-    fn commission(&mut self) -> anyhow::Result<ema::commission::Report>;
+    fn commission(&mut self) -> anyhow::Result<ema::device::commission::Report>;
     fn commissioned(&mut self) -> Commissioned;
 }
 
@@ -48,7 +49,7 @@ impl Commissioning for Rig {
         self.status();
     }
 
-    fn commission(&mut self) -> anyhow::Result<ema::commission::Report> {
+    fn commission(&mut self) -> anyhow::Result<ema::device::commission::Report> {
         let args = CommissionArgs {
             apply: false,
             tune: false,
@@ -116,7 +117,7 @@ fn a_coil_far_below_its_file_stops_above_the_rating_and_a_disarm_stops_it() {
     rig.link.done(Command::Disarm).unwrap();
     assert_eq!(
         rig.commissioned(),
-        Commissioned::Aborted(ema::commission::Abort::Stopped)
+        Commissioned::Aborted(ema::device::commission::Abort::Stopped)
     );
     assert_eq!(rig.status().mode, Mode::Disarmed);
 
@@ -346,7 +347,7 @@ fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
     assert_eq!(file.coil.resistance_ohm, got.resistance.ohm);
     // Each inductance as measured, or moved by the same factor at most 5 % to keep the
     // iron's reluctance positive (the head says how much).
-    let ema::actuator::Magnetics::Inductance { open_h, closed_h } = file.magnetics else {
+    let ema::control::actuator::Magnetics::Inductance { open_h, closed_h } = file.magnetics else {
         panic!("{:?}", file.magnetics)
     };
     let moved = closed_h / got.inductance.closed_h;
@@ -417,7 +418,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     // the measured circuit in the board's own form (geometry) and the tuning chosen.
     let status = rig.status();
     assert!(
-        matches!(status.params, ema::protocol::Source::Stored),
+        matches!(status.params, ema::device::protocol::Source::Stored),
         "{:?}",
         status.params
     );
@@ -425,7 +426,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     assert_eq!(board.coil.resistance_ohm, got.resistance.ohm);
     assert!(matches!(
         board.magnetics,
-        ema::actuator::Magnetics::Geometry { .. }
+        ema::control::actuator::Magnetics::Geometry { .. }
     ));
     let (b, m) = (
         board.time_scales().unwrap(),

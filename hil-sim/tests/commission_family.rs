@@ -1,7 +1,7 @@
-//! The board's commissioning routine (`ema::commission`) on every actuator of the family,
-//! against its simulated plant ([`hil_sim::commissioning`]): the file's plant here (the
-//! drawn plants are in `tests/commission.rs`, through the host tool and the virtual board,
-//! and in `hil-sim commission`).
+//! The board's commissioning routine (`ema::device::commission`) on every actuator of the
+//! family, against its simulated plant ([`hil_sim::commissioning`]): the file's plant here
+//! (the drawn plants are in `tests/commission.rs`, through the host tool and the virtual
+//! board, and in `hil-sim commission`).
 //!
 //! Each member: the resistance within 2 %, the inductance at both stops and the curve the
 //! written file models over the stroke within 5 % of the plant's, the position readings at both stops within 2 codes of the true positions',
@@ -112,7 +112,7 @@ fn a_valve_that_snaps_onto_its_stop_in_a_step_s_wait_is_driven_within_its_rating
             panic!("seed {seed}: commissioning stopped: {:?}", o.report)
         };
         assert!(r.abs() < 0.02, "seed {seed}: {o:?}");
-        let full = f64::from(ema::commission::FULL_SHARE) + 0.01;
+        let full = f64::from(ema::device::commission::FULL_SHARE) + 0.01;
         assert!(o.peak_a <= full * rated, "seed {seed}: {o:?}");
     }
 }
@@ -135,14 +135,14 @@ fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
 }
 
 /// A position sensor at the corners of its tolerance
-/// ([`ema::actuator::POSITION_SENSOR_TOLERANCE`] in offset and in gain, the same way) reads
-/// inside the converter's plausible window at both stops on every member, the noise's reach
-/// ([`ema::actuator::NOISE_SIGMAS`] deviations) included; and the product with such a
-/// sensor is commissioned, its stops read within 2 codes.
+/// ([`ema::control::actuator::POSITION_SENSOR_TOLERANCE`] in offset and in gain, the same
+/// way) reads inside the converter's plausible window at both stops on every member, the
+/// noise's reach ([`ema::control::actuator::NOISE_SIGMAS`] deviations) included; and the
+/// product with such a sensor is commissioned, its stops read within 2 codes.
 #[test]
 fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commissioned() {
-    let t = ema::actuator::POSITION_SENSOR_TOLERANCE;
-    let reach = ema::actuator::NOISE_SIGMAS * ema::sense::NOISE_RMS_CODES;
+    let t = ema::control::actuator::POSITION_SENSOR_TOLERANCE;
+    let reach = ema::control::actuator::NOISE_SIGMAS * ema::control::sense::NOISE_RMS_CODES;
     for e in &hil_sim::actuator::FAMILY {
         let (name, a) = hil_sim::actuator::load(e.name).unwrap();
         let ch = a.calibration().position;
@@ -181,13 +181,16 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
 struct Drawn {
     draw: hil_sim::commissioning::Draw,
     plant: hil_sim::plant::Params,
-    report: ema::commission::Report,
+    report: ema::device::commission::Report,
     mechanics: Option<hil_sim::commissioning::Mechanics>,
     faults: Vec<&'static str>,
 }
 
 /// A plant drawn off actuator `a` with `rng`, commissioned and held ([`Drawn`]).
-fn holds_on_a_drawn_plant(a: &ema::actuator::Actuator, rng: &mut rand_pcg::Pcg64) -> Drawn {
+fn holds_on_a_drawn_plant(
+    a: &ema::control::actuator::Actuator,
+    rng: &mut rand_pcg::Pcg64,
+) -> Drawn {
     let draw = hil_sim::commissioning::Draw::new(rng);
     let o = hil_sim::commissioning::run(a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
@@ -206,7 +209,7 @@ fn holds_on_a_drawn_plant(a: &ema::actuator::Actuator, rng: &mut rand_pcg::Pcg64
 fn drawn_product(
     seed: u64,
 ) -> (
-    ema::actuator::Actuator,
+    ema::control::actuator::Actuator,
     Drawn,
     hil_sim::commissioning::Mechanics,
 ) {
@@ -503,7 +506,14 @@ fn a_product_a_coarse_grid_misses_is_tuned_between_its_points() {
 /// square pole's fringing does, `(a + k g)^2` (the paper's rectangular-pole form with
 /// `k` for its 1), the file's surface at mid-stroke, and the energy-consistent force
 /// `-dL/dg` such a surface gives: the file, the plant and the growth `q` \[1/m\].
-fn growing(name: &str, k: f64) -> (ema::actuator::Actuator, hil_sim::plant::Params, f64) {
+fn growing(
+    name: &str,
+    k: f64,
+) -> (
+    ema::control::actuator::Actuator,
+    hil_sim::plant::Params,
+    f64,
+) {
     let (_, a) = hil_sim::actuator::load(name).unwrap();
     let mut plant = hil_sim::commissioning::true_plant(&a, None).unwrap();
     let mid = plant.gap_m(0.5 * plant.stroke_m);
@@ -559,7 +569,7 @@ fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_
     assert!(curve < 0.005, "{curve}");
     assert!(k.abs() < 0.01, "{:?}", m.spring);
     assert!(mass.abs() < 0.02, "{:?}", m.armature);
-    let ema::actuator::Magnetics::Geometry {
+    let ema::control::actuator::Magnetics::Geometry {
         fringing_spread, ..
     } = fitted.magnetics
     else {
@@ -585,7 +595,7 @@ fn a_two_inductance_file_carries_a_growing_surface_as_its_uncertainty() {
     let (a, plant, growth) = growing("solenoid-12v", 0.3);
     assert!(matches!(
         a.magnetics,
-        ema::actuator::Magnetics::Inductance { .. }
+        ema::control::actuator::Magnetics::Inductance { .. }
     ));
     let report = c::run_on(&a, &plant, None).unwrap().report.unwrap();
     let m = c::mechanics(&a, &report, &plant, None)
@@ -635,8 +645,8 @@ fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
                 Some((f * stroke, l, 0.005 * l))
             })
             .collect();
-        let report = ema::commission::Report {
-            inductance: ema::commission::Inductance {
+        let report = ema::device::commission::Report {
+            inductance: ema::device::commission::Inductance {
                 open_h: (at(0.0) * 1.002) as f32,
                 closed_h: (at(stroke) * 1.002) as f32,
             },
@@ -676,12 +686,12 @@ fn a_hold_that_limit_cycles_reads_the_spring_with_the_armature_s_inertia_taken_o
     let plant = hil_sim::commissioning::true_plant(&a, None).unwrap();
     let stroke = plant.stroke_m;
     let at = |x: f64| plant.inductance_h(plant.gap_m(x));
-    let report = ema::commission::Report {
-        inductance: ema::commission::Inductance {
+    let report = ema::device::commission::Report {
+        inductance: ema::device::commission::Inductance {
             open_h: at(0.0) as f32,
             closed_h: at(stroke) as f32,
         },
-        ends: ema::commission::Ends {
+        ends: ema::device::commission::Ends {
             open_m: 0.0,
             closed_m: stroke as f32,
             spread_m: 0.0,

@@ -35,7 +35,7 @@ fn drawn_actuators_obey_the_rules_and_the_ranges_and_round_trip_through_their_fi
         assert!(k.hold_ratio >= 1.09, "{}: {k:?}", d.name());
         assert!(k.drive_ratio >= 1.0, "{}: {k:?}", d.name());
         assert!(
-            k.flux_density_t <= ema::actuator::SATURATION_T,
+            k.flux_density_t <= ema::control::actuator::SATURATION_T,
             "{}: {k:?}",
             d.name()
         );

@@ -38,7 +38,7 @@ fn every_tuned_file_is_its_actuator_with_a_tuning() {
         assert!(plain.tuning.is_none(), "{}", e.name);
         assert!(tuned.tuning.is_some(), "{}", e.name);
         assert_eq!(
-            ema::actuator::Actuator {
+            ema::control::actuator::Actuator {
                 tuning: None,
                 ..tuned
             },
@@ -53,7 +53,7 @@ fn every_tuned_file_is_its_actuator_with_a_tuning() {
 #[test]
 fn the_built_in_product_is_its_tuned_file() {
     let (_, tuned) = actuator::load("product").unwrap();
-    assert_eq!(tuned, ema::actuator::Actuator::PRODUCT);
+    assert_eq!(tuned, ema::control::actuator::Actuator::PRODUCT);
 }
 
 /// The product's actuator on its nominal plant: the paper's step and the sequence, at 20

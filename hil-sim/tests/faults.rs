@@ -4,7 +4,7 @@
 //! family member's table is pinned as measured, its limits included. On every actuator
 //! of the family, healthy runs raise nothing.
 
-use ema::supervisor::Fault;
+use ema::control::supervisor::Fault;
 use hil_sim::actuator::{self, FAMILY};
 use hil_sim::faults::{cases, evaluate, Case, Outcome, DEADLINE_S};
 use hil_sim::scenario::Injected;
@@ -257,7 +257,7 @@ fn every_member_s_fault_table_is_as_pinned() {
 /// Why a current reading frozen "where the current changes fastest" is named late on
 /// three members: over the deadline after the injection, the healthy run's true current
 /// stays within about one noise allowance of the current detectors
-/// ([`ema::actuator::NOISE_ALLOWANCE_CODES`] current codes) of its value at the
+/// ([`ema::control::actuator::NOISE_ALLOWANCE_CODES`] current codes) of its value at the
 /// injection (measured: 0.72 allowances on the valve, 0.80 on the positioner, 0.95 on the
 /// 12 V solenoid), so a reading frozen there is, for that millisecond, what an admissible
 /// coil could give: nothing observable differs, and the reading is named only once the
@@ -291,7 +291,7 @@ fn current_stuck_is_unobservable_within_the_deadline() {
             .filter(|s| s.t_s >= c.at_s && s.t_s <= c.at_s + DEADLINE_S)
             .map(|s| (s.i_a - at).abs())
             .fold(0.0, f64::max);
-        let allowance = f64::from(ema::actuator::NOISE_ALLOWANCE_CODES)
+        let allowance = f64::from(ema::control::actuator::NOISE_ALLOWANCE_CODES)
             * f64::from(base.controller.sense.current.scale.abs());
         println!(
             "{member}: {excursion} A within 1 ms, allowance {allowance} A ({} allowances)",
@@ -344,17 +344,21 @@ fn a_tick_that_stops_coasts_the_bridge_within_half_a_millisecond() {
     let first_coast = r
         .samples
         .iter()
-        .position(|s| s.t_s >= stall_s && s.mode == ema::bridge::Mode::Coast)
+        .position(|s| s.t_s >= stall_s && s.mode == ema::control::bridge::Mode::Coast)
         .unwrap();
     let coast_s = r.samples[first_coast].t_s;
     assert!((coast_s - 300e-6).abs() < 1e-9, "{coast_s}");
     assert!(coast_s - stall_s <= 0.5e-3);
     // Driven all through the stall, coasting after, with the overrun latched.
     let stalled = &r.samples[1..first_coast];
-    assert!(stalled.iter().all(|s| s.mode == ema::bridge::Mode::Forward));
+    assert!(stalled
+        .iter()
+        .all(|s| s.mode == ema::control::bridge::Mode::Forward));
     assert!(stalled.iter().all(|s| s.fault.is_none()));
     let after = &r.samples[first_coast..];
-    assert!(after.iter().all(|s| s.mode == ema::bridge::Mode::Coast));
+    assert!(after
+        .iter()
+        .all(|s| s.mode == ema::control::bridge::Mode::Coast));
     assert!(after.iter().all(|s| s.fault == Some(Fault::Overrun)));
     assert_eq!(r.samples.last().unwrap().i_a, 0.0);
 }
@@ -441,7 +445,7 @@ fn faults_at_random_instants_are_named_on_drawn_plants() {
 /// level, 1.2 x the peak current, the product's healthy run never reaches it.
 #[test]
 fn the_board_s_comparator_switches_the_bridge_off_at_its_level() {
-    let level = ema::actuator::Actuator::PRODUCT.break_current_a();
+    let level = ema::control::actuator::Actuator::PRODUCT.break_current_a();
     let product = Scenario::product(20e3, 24.0).unwrap().with_duration_s(0.1);
     assert_eq!(product.bridge.break_current_a, Some(level));
     let healthy = run(&product).unwrap();
@@ -464,6 +468,6 @@ fn the_board_s_comparator_switches_the_bridge_off_at_its_level() {
     );
     assert!(r.samples[k..]
         .iter()
-        .all(|s| s.mode == ema::bridge::Mode::Coast));
+        .all(|s| s.mode == ema::control::bridge::Mode::Coast));
     assert!(w.metrics.i_peak_a > peak + 1.0, "{} A", w.metrics.i_peak_a);
 }

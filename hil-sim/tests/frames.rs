@@ -19,8 +19,8 @@
 //! [`protocol::decode`] run on the host over the same bytes; the board's answers must be
 //! those, in order, with only rejections left out.
 
-use ema::actuator::Actuator;
-use ema::protocol::{
+use ema::control::actuator::Actuator;
+use ema::device::protocol::{
     self, Command, FrameError, Framer, Message, Request, Trigger, Value, CRC, CRC_LEN, MAX_FRAME,
     VERSION,
 };

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use ema::trace::{self, CASES, MIN_GOLDEN_TICKS};
+use ema::control::trace::{self, CASES, MIN_GOLDEN_TICKS};
 
 #[test]
 fn saved_traces_are_what_the_simulator_records() {

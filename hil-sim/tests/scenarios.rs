@@ -6,7 +6,7 @@
 //! (alpha1 = 10, alpha2 = 20000, eps1 = 10 V), 150 V supply, ideal sensors, averaged
 //! bridge, step from x0 = (1 mm, 0, 0) to 3 mm.
 
-use ema::supervisor::Fault;
+use ema::control::supervisor::Fault;
 use hil_sim::hal::{self, Adc, Switches};
 use hil_sim::plant::ForceModel;
 use hil_sim::scenario::{BridgeMode, Reference, Sensors, StepAt, TruePlant, Uncertainty};
@@ -144,13 +144,17 @@ fn physical_convention_settles_like_the_paper_convention() {
             force: ForceModel::EnergyConsistent,
         })
         .with_current_trip_a(110.0);
-    let conv = ema::model::Convention::Physical {
+    let conv = ema::control::model::Convention::Physical {
         gap_at_zero_m: 4.5e-3,
     };
     let plant = &mut sc.controller.plant;
     plant.convention = conv;
-    plant.bounds =
-        ema::model::Bounds::around(&plant.magnetics.fringing, conv.gap_range_m(4e-3), 0.2, 0.2);
+    plant.bounds = ema::control::model::Bounds::around(
+        &plant.magnetics.fringing,
+        conv.gap_range_m(4e-3),
+        0.2,
+        0.2,
+    );
     sc.controller.sense = hal::calibration(225.0, 120.0);
     let r = run(&sc).unwrap();
     let s = r.metrics.first().unwrap();
@@ -319,7 +323,7 @@ fn montecarlo_is_deterministic_and_draws_distinct_plants() {
 #[test]
 fn drawn_plants_rarely_leave_the_bounds_and_are_flagged_when_they_do() {
     use rand::SeedableRng;
-    let nominal = ema::model::Plant::paper();
+    let nominal = ema::control::model::Plant::paper();
     let u = Uncertainty::default();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
     let mut flagged = 0;

@@ -1,11 +1,11 @@
-//! The golden traces' settings identity (`ema::trace::settings_hash`) follows every
-//! setting: for each trace case, every numeric or boolean leaf of its settings, changed
-//! alone by the smallest step its type has (one unit in the last place of an `f32`, one
-//! for an integer, the other value of a flag), gives another identity. A field left out
+//! The golden traces' settings identity (`ema::control::trace::settings_hash`) follows
+//! every setting: for each trace case, every numeric or boolean leaf of its settings,
+//! changed alone by the smallest step its type has (one unit in the last place of an `f32`,
+//! one for an integer, the other value of a flag), gives another identity. A field left out
 //! of the identity would let a saved trace pass against settings it was not made with.
 
+use ema::control::trace::{settings_hash, CASES};
 use ema::control::Settings;
-use ema::trace::{settings_hash, CASES};
 use toml::Value;
 
 /// Paths to every leaf that can be nudged, in document order.

@@ -6,17 +6,17 @@
 //! triggers ADC1, which converts position, coil current, bus voltage and the analog set
 //! point around the top of the count; the end of that sequence interrupts, and the
 //! interrupt runs the application's `ema::device::Controller::tick` (the operating state,
-//! one order from the main loop, `ema::control::Config::tick` through `ema::guard`,
+//! one order from the main loop, `ema::control::Config::tick` through `ema::device::guard`,
 //! telemetry and capture) and writes the next duty, direction and enable, which the timer
 //! applies together at the next period boundary. The board boots disarmed, with the
 //! bridge coasting. The main loop serves the bench link (USART2 by DMA, `link`) with
 //! `ema::device::Dispatcher`, and the parameters live in flash sectors 1 and 2 through
-//! `ema::store`, loaded at start (an earlier format migrated; a damaged or unknown set
-//! falls back to the built-in defaults and says so) and saved at the next start, before
+//! `ema::device::store`, loaded at start (an earlier format migrated; a damaged or unknown
+//! set falls back to the built-in defaults and says so) and saved at the next start, before
 //! the control runs. Pins, clocks and every other hardware fact are in [`board`]; the
-//! register
-//! values in [`regs`]; register-level set-up in `hw`; start-up, the interrupts, the status
-//! line and the panic and fault handlers in `app`; what survives a reset in [`reset`].
+//! register values in [`regs`]; register-level set-up in `hw`; start-up, the interrupts,
+//! the status line and the panic and fault handlers in `app`; what survives a reset in
+//! [`reset`].
 //!
 //! Safety measures, in the order they act:
 //! * the board pulls the bridge lines low, so the bridge coasts through reset and boot;
@@ -37,14 +37,14 @@
 //!   its interrupt coasts the bridge;
 //! * the tick cannot panic (link-time proof: `tests/qemu_no_panic.rs`) and latches any
 //!   implausible input as a fault with the bridge coasting;
-//! * the guard (`ema::guard`) latches `Fault::Overrun` for a tick that starts more than 1.5
-//!   periods after the previous one, ends with the next conversion waiting, or ends after
-//!   the period boundary its writes were for; only on-time ticks feed the watchdogs, and
-//!   only while the main loop checks in (`ema::liveness`: a main loop silent for 20 ms
-//!   latches `Fault::MainLoopStalled`, the bridge coasts and the watchdogs end the run;
-//!   the next start keeps the fault);
+//! * the guard (`ema::device::guard`) latches `Fault::Overrun` for a tick that starts more
+//!   than 1.5 periods after the previous one, ends with the next conversion waiting, or
+//!   ends after the period boundary its writes were for; only on-time ticks feed the
+//!   watchdogs, and only while the main loop checks in (`ema::device::liveness`: a main
+//!   loop silent for 20 ms latches `Fault::MainLoopStalled`, the bridge coasts and the
+//!   watchdogs end the run; the next start keeps the fault);
 //! * armed for the link, a host silent for `link.timeout_s` disarms the board with
-//!   `Fault::LinkTimeout` latched (`ema::liveness`);
+//!   `Fault::LinkTimeout` latched (`ema::device::liveness`);
 //! * the window watchdog's early wake-up (at most 292.6 us after the last feed) coasts the
 //!   bridge, its reset follows one count later; the independent watchdog (2 ms) is the
 //!   last resort; after a watchdog reset the controller starts with `Fault::Overrun`

@@ -1,4 +1,14 @@
-//! The one tick: sense -> shaping -> observer -> law -> detectors -> bridge.
+//! The control layer: everything the control tick computes, and the tick itself.
+//!
+//! The tick runs sense -> limits -> set point -> shaping -> observer -> law -> supervisor
+//! -> bridge (each step in the crate docs' architecture section). Its stages are the
+//! submodules ([`sense`], [`shaping`], [`observer`], [`law`], [`supervisor`], [`bridge`]),
+//! with what they share ([`model`], [`actuator`], [`config`], [`math`]) and the golden
+//! traces that record and replay it ([`trace`]). The tick is this module's root, not a
+//! submodule of its own: [`Config`] is the layer's configuration, made of each stage's
+//! `Config` (`law::Config`, `observer::Config`, ...), so `control::Config::tick` names it
+//! as the stages are named, and a `control::tick::Config::tick` would say "tick" twice.
+//! The layer uses nothing else in the crate: the build script compiles it alone.
 //!
 //! [`Settings`] is the plain description (what a configuration file holds);
 //! [`Settings::build`] validates it into an immutable [`Config`], the only thing the tick
@@ -7,9 +17,9 @@
 //! supplies ideal SI measurements instead of converter codes).
 //!
 //! ```
-//! use ema::bridge::{HBridge, NullPin, NullPwm, BOARD_MAX_DUTY};
+//! use ema::control::bridge::{HBridge, NullPin, NullPwm, BOARD_MAX_DUTY};
 //! use ema::control::Settings;
-//! use ema::sense::Measurement;
+//! use ema::control::sense::Measurement;
 //! let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();
 //! let mut state = cfg.initial_state();
 //! let mut bridge = HBridge::new(NullPwm::new(BOARD_MAX_DUTY), NullPin(false), NullPin(false)).unwrap();
@@ -21,25 +31,35 @@
 //! assert!(status.drive.u_v > 23.9); // saturated at the bus voltage
 //!
 //! // A position sensor on the ADC rail is a fault: the bridge coasts, nothing panics.
-//! let broken = ema::sense::Frame { position: 0, ..frame };
+//! let broken = ema::control::sense::Frame { position: 0, ..frame };
 //! let status = cfg.tick(&mut state, &mut bridge, &broken, 3e-3);
-//! assert_eq!(status.fault, Some(ema::supervisor::Fault::PositionSensor));
-//! assert_eq!(status.drive.mode, ema::bridge::Mode::Coast);
+//! assert_eq!(status.fault, Some(ema::control::supervisor::Fault::PositionSensor));
+//! assert_eq!(status.drive.mode, ema::control::bridge::Mode::Coast);
 //! ```
 
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
-use crate::actuator::Actuator;
-use crate::bridge::{Drive, HBridge};
-use crate::config::{self, Error};
-use crate::law::{self, Law, Reference};
-use crate::math;
-use crate::model::Plant;
-use crate::observer::{self, Estimate};
-use crate::sense::{Calibration, Frame, Measurement};
-use crate::shaping;
-use crate::supervisor::{self, monitor, Fault, Limits, Monitors};
+pub mod actuator;
+pub mod bridge;
+pub mod config;
+pub mod law;
+pub mod math;
+pub mod model;
+pub mod observer;
+pub mod sense;
+pub mod shaping;
+pub mod supervisor;
+pub mod trace;
+
+use actuator::Actuator;
+use bridge::{Drive, HBridge};
+use config::Error;
+use law::{Law, Reference};
+use model::Plant;
+use observer::Estimate;
+use sense::{Calibration, Frame, Measurement};
+use supervisor::{monitor, Fault, Limits, Monitors};
 
 /// Everything needed to build a controller, before validation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -102,8 +122,8 @@ impl Settings {
             shaping: None,
             monitors: Monitors {
                 thermal: None,
-                stuck: Some(crate::actuator::stuck_detector(&sense.position)),
-                residual: Some(crate::actuator::residual_detector(&sense.current, rate_hz)),
+                stuck: Some(actuator::stuck_detector(&sense.position)),
+                residual: Some(actuator::residual_detector(&sense.current, rate_hz)),
                 tracking: None,
             },
         }
@@ -147,7 +167,7 @@ impl Settings {
             sense: self.sense,
             limits: self.limits,
             stroke_m: self.plant.stroke_m,
-            max_modulation: crate::bridge::max_modulation(self.rate_hz),
+            max_modulation: bridge::max_modulation(self.rate_hz),
         })
     }
 }
@@ -165,7 +185,7 @@ pub struct Config {
     limits: Limits,
     stroke_m: f32,
     /// The highest duty that keeps the current's sample clear of the switching edges
-    /// ([`crate::bridge::max_modulation`]).
+    /// ([`bridge::max_modulation`]).
     max_modulation: f32,
 }
 
@@ -467,7 +487,7 @@ impl Config {
                 self.monitors.record_drive(
                     &mut state.monitor,
                     drive.u_v,
-                    drive.mode != crate::bridge::Mode::Coast,
+                    drive.mode != bridge::Mode::Coast,
                 );
             }
             Err(_) => {
@@ -500,7 +520,7 @@ mod properties;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bridge::{Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
+    use crate::control::bridge::{Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
 
     fn setup() -> (Config, State, HBridge<NullPwm, NullPin>) {
         let cfg = Settings::paper(20_000.0, 24.0).build().unwrap();

@@ -18,10 +18,10 @@
 extern crate std;
 
 use super::{Settings, State, Status};
-use crate::bridge::{HBridge, Mode};
-use crate::law;
-use crate::sense::{Frame, Measurement, ADC_MAX_CODE};
-use crate::supervisor::Fault;
+use crate::control::bridge::{HBridge, Mode};
+use crate::control::law;
+use crate::control::sense::{Frame, Measurement, ADC_MAX_CODE};
+use crate::control::supervisor::Fault;
 use core::cell::Cell;
 use core::convert::Infallible;
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
@@ -33,7 +33,7 @@ use std::vec::Vec;
 
 const CASES: u32 = 250;
 const LEN: usize = 700;
-const MAX_DUTY: u16 = crate::bridge::BOARD_MAX_DUTY;
+const MAX_DUTY: u16 = crate::control::bridge::BOARD_MAX_DUTY;
 
 /// PWM and pins that record what the bridge did, for checking after each tick.
 #[derive(Clone, Default)]

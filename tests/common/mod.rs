@@ -14,7 +14,7 @@ use core::convert::Infallible;
 use core::fmt;
 
 use cortex_m_semihosting::debug;
-use ema::bridge::HBridge;
+use ema::control::bridge::HBridge;
 // The STM32F405 vector table (cortex-m-rt's `device` feature is on in this package).
 use stm32f4xx_hal as _;
 
@@ -184,7 +184,7 @@ impl embedded_hal::digital::OutputPin for RamPin {
 pub type Bridge = HBridge<RamPwm, RamPin>;
 
 /// A bridge on the RAM registers, coasting, with PWM resolution `max_duty` (the
-/// firmware's TIM1 at 20 kHz gives [`ema::bridge::BOARD_MAX_DUTY`]).
+/// firmware's TIM1 at 20 kHz gives [`ema::control::bridge::BOARD_MAX_DUTY`]).
 pub fn bridge(max_duty: u16) -> Bridge {
     let pwm = RamPwm {
         ccr: &PWM_CCR,

@@ -1,8 +1,8 @@
 //! The link-time proof that the tick cannot panic, shared by `tests/qemu_no_panic.rs` (must
 //! link) and `tests/panic_canary.rs` (must not).
 //!
-//! It also covers the golden-trace reader and replay (`ema::trace::Trace::parse`,
-//! `ema::trace::replay`), which the on-target checker runs on bytes from flash.
+//! It also covers the golden-trace reader and replay (`ema::control::trace::Trace::parse`,
+//! `ema::control::trace::replay`), which the on-target checker runs on bytes from flash.
 //!
 //! The program's panic handler calls a function that exists nowhere. The release profile
 //! links with fat LTO, so every function that no reachable code calls is gone before the
@@ -14,9 +14,9 @@
 
 use core::hint::black_box;
 
-use ema::guard::{self, End, Start};
-use ema::supervisor::Fault;
-use ema::trace::CASES;
+use ema::control::supervisor::Fault;
+use ema::control::trace::CASES;
+use ema::device::guard::{self, End, Start};
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
@@ -32,7 +32,7 @@ fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
 /// Ticks every reference case on opaque inputs; returns something that depends on all.
 pub fn exercise() -> u32 {
     let mut acc = 0u32;
-    let mut bridge = crate::common::bridge(black_box(ema::bridge::BOARD_MAX_DUTY));
+    let mut bridge = crate::common::bridge(black_box(ema::control::bridge::BOARD_MAX_DUTY));
     for case in CASES {
         let Ok(cfg) = (case.settings)().and_then(|s| s.build()) else {
             continue;
@@ -43,7 +43,7 @@ pub fn exercise() -> u32 {
         let guard = black_box(guard::Config::for_period(8400));
         let mut guarded = black_box(guard::State::default());
         for _ in 0..black_box(3) {
-            let frame = black_box(ema::sense::Frame {
+            let frame = black_box(ema::control::sense::Frame {
                 position: 1000,
                 current: 2100,
                 vbus: 1354,
@@ -66,8 +66,8 @@ pub fn exercise() -> u32 {
         }
         acc = acc.wrapping_add(black_box(state).ticks);
         // The trace reader and replay, on bytes the optimiser cannot see.
-        if let Ok(trace) = ema::trace::Trace::parse(black_box(&TRACE[..])) {
-            if let Err(m) = ema::trace::replay(&trace, &cfg, &mut bridge) {
+        if let Ok(trace) = ema::control::trace::Trace::parse(black_box(&TRACE[..])) {
+            if let Err(m) = ema::control::trace::replay(&trace, &cfg, &mut bridge) {
                 acc = acc.wrapping_add(m.tick);
             }
         }
@@ -76,5 +76,5 @@ pub fn exercise() -> u32 {
 }
 
 /// Bytes for the trace reader: a header and two records' worth.
-static TRACE: [u8; ema::trace::HEADER_LEN + 2 * ema::trace::RECORD_LEN] =
-    [0; ema::trace::HEADER_LEN + 2 * ema::trace::RECORD_LEN];
+static TRACE: [u8; ema::control::trace::HEADER_LEN + 2 * ema::control::trace::RECORD_LEN] =
+    [0; ema::control::trace::HEADER_LEN + 2 * ema::control::trace::RECORD_LEN];

@@ -5,7 +5,7 @@
 //! monitors (the electrical residual compares the measured current with the applied
 //! voltage).
 //!
-//! Model (`ema::model`, with the settings' nominal magnetics and convention):
+//! Model (`ema::control::model`, with the settings' nominal magnetics and convention):
 //! `L(g) i' = u - R i + s v i mu(g)`, `m x'' = i^2 mu(g) / 2 - lambda v - K x`, end stops
 //! at 0 and the stroke; explicit Euler, [`SUBSTEPS`] steps per tick. The bridge applies the
 //! average voltage of its drive; in coast the current returns to the bus through the
@@ -15,10 +15,10 @@
 //! ideal ones plus +-1 code of deterministic noise.
 #![allow(dead_code)]
 
-use ema::bridge::{Drive, Mode};
+use ema::control::bridge::{Drive, Mode};
+use ema::control::model;
+use ema::control::sense::{Calibration, Frame, Measurement};
 use ema::control::Settings;
-use ema::model;
-use ema::sense::{Calibration, Frame, Measurement};
 
 /// Integration steps per tick.
 pub const SUBSTEPS: u32 = 20;

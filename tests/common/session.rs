@@ -12,16 +12,16 @@
 //! expected).
 #![allow(dead_code)]
 
-use ema::actuator::Actuator;
-use ema::bridge::{HBridge, Mode as BridgeMode};
-use ema::device::{Boot, Controller, Dispatcher, Inputs, IsrEnds, MainEnds, Storage};
-use ema::guard::{End, Start};
-use ema::params::{Board, Params};
-use ema::protocol::{
+use ema::control::actuator::Actuator;
+use ema::control::bridge::{HBridge, Mode as BridgeMode};
+use ema::control::supervisor::Fault;
+use ema::device::guard::{End, Start};
+use ema::device::params::{Board, Params};
+use ema::device::protocol::{
     self, Build, CaptureState, Command, FrameError, Framer, LoadError, Message, Mode, Refusal,
     Reply, Request, Sample, Signal, Source, Trigger, Value, MAX_FRAME,
 };
-use ema::supervisor::Fault;
+use ema::device::{Boot, Controller, Dispatcher, Inputs, IsrEnds, MainEnds, Storage};
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
@@ -53,9 +53,11 @@ pub const BUILD: Build<'static> = Build {
 };
 
 /// The link's timeout in ticks (the default, at [`BOARD`]'s rate).
-pub const LINK_TIMEOUT_TICKS: u32 = (ema::liveness::DEFAULT_TIMEOUT_S * BOARD.rate_hz) as u32;
+pub const LINK_TIMEOUT_TICKS: u32 =
+    (ema::device::liveness::DEFAULT_TIMEOUT_S * BOARD.rate_hz) as u32;
 /// The main loop's deadline in ticks.
-pub const MAIN_LOOP_TICKS: u32 = (ema::liveness::MAIN_LOOP_DEADLINE_S * BOARD.rate_hz) as u32;
+pub const MAIN_LOOP_TICKS: u32 =
+    (ema::device::liveness::MAIN_LOOP_DEADLINE_S * BOARD.rate_hz) as u32;
 
 /// Nothing stored.
 pub struct Empty;

@@ -4,8 +4,8 @@
 //! the two tests fails.
 #![allow(dead_code)]
 
-use ema::law::{self, Law};
-use ema::model::Plant;
+use ema::control::law::{self, Law};
+use ema::control::model::Plant;
 
 /// Number of `f32` bit patterns in the square-root sweep.
 pub const SQRT_SWEEP_COUNT: u32 = 1 << 18;
@@ -30,14 +30,14 @@ pub fn fnv(mut h: u64, bits: u32) -> u64 {
 /// FNV-1a offset basis.
 pub const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
-/// Hash of `ema::math::sqrt` over the sweep (NaN results canonical), computed on the host
-/// with `libm::sqrtf` (what `ema::math::sqrt` is there).
+/// Hash of `ema::control::math::sqrt` over the sweep (NaN results canonical), computed on
+/// the host with `libm::sqrtf` (what `ema::control::math::sqrt` is there).
 pub const SQRT_SWEEP_HASH: u64 = 0xd297_55d4_6b41_ecc7;
 
 /// The hash of `sqrt` over the sweep.
 pub fn sqrt_sweep_hash(sqrt: impl Fn(f32) -> f32) -> u64 {
     (0..SQRT_SWEEP_COUNT).fold(FNV_OFFSET, |h, k| {
-        fnv(h, ema::trace::bits(sqrt(sqrt_input(k))))
+        fnv(h, ema::control::trace::bits(sqrt(sqrt_input(k))))
     })
 }
 

@@ -8,8 +8,8 @@
 //! | firmware | virtual board |
 //! |---|---|
 //! | TIM1 + ADC1 interrupt, 20 kHz | [`VirtualBoard::tick`]: sample the plant, tick, advance the plant one period |
-//! | UART with DMA | bytes in and out ([`VirtualBoard::input`], [`VirtualBoard::output`]) at the link's rate ([`ema::protocol::BAUD`], 10 bits a byte), a receive ring of the firmware's size that drops what overflows it; [`VirtualBoard::serve`] moves them over a pseudo-terminal and drops what the host does not read, as a UART does, counting both ([`VirtualBoard::dropped`]) |
-//! | the watchdogs | a run of ticks that do not feed them longer than the window watchdog waits ([`ema::guard::WATCHDOG_QUIET_PERIODS`]) restarts the application with the fault the firmware's next start latches (`main_loop_stalled` after a stalled main loop, `overrun` otherwise) |
+//! | UART with DMA | bytes in and out ([`VirtualBoard::input`], [`VirtualBoard::output`]) at the link's rate ([`ema::device::protocol::BAUD`], 10 bits a byte), a receive ring of the firmware's size that drops what overflows it; [`VirtualBoard::serve`] moves them over a pseudo-terminal and drops what the host does not read, as a UART does, counting both ([`VirtualBoard::dropped`]) |
+//! | the watchdogs | a run of ticks that do not feed them longer than the window watchdog waits ([`ema::device::guard::WATCHDOG_QUIET_PERIODS`]) restarts the application with the fault the firmware's next start latches (`main_loop_stalled` after a stalled main loop, `overrun` otherwise) |
 //! | flash sectors 1 and 2 | [`Flash`], which can lose its power at any write |
 //! | a save restarts the chip, which writes the flash before it starts the control | [`VirtualBoard::restart`] with the set to save, the same [`device::boot`] |
 //! | the measured current-sensor zero | the nominal zero |
@@ -28,16 +28,16 @@ use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use ema::actuator::Actuator;
-use ema::bridge::HBridge;
+use ema::control::actuator::Actuator;
+use ema::control::bridge::HBridge;
+use ema::control::supervisor::Fault;
+use ema::device::guard::{End, Start};
+use ema::device::params::{Board, Params};
+use ema::device::protocol::{self, Build, LoadError, Mode, Sample, StoreError};
+use ema::device::store::{ReadOnly, Store};
 use ema::device::{
     self, Action, Boot, Controller, Dispatcher, Inputs, Queues, Storage, Ticked, CAPTURE_CAPACITY,
 };
-use ema::guard::{End, Start};
-use ema::params::{Board, Params};
-use ema::protocol::{self, Build, LoadError, Mode, Sample, StoreError};
-use ema::store::{ReadOnly, Store};
-use ema::supervisor::Fault;
 
 use super::flash::{Flash, PAGE, PAGES};
 use crate::hal::{self, Adc, Converter, Lines, Pin, Pwm};
@@ -55,7 +55,7 @@ pub struct Options {
     /// The built-in `link.*` parameters. A board served faster than real time
     /// ([`VirtualBoard::serve`] without a speed) runs its ticks faster than a host's
     /// heartbeat, paced in real time, can follow: its timeout must be off (0).
-    pub link: ema::liveness::Settings,
+    pub link: ema::device::liveness::Settings,
     /// The link at the UART's rate, through a receive ring of the firmware's size (the
     /// default); off, bytes reach the board and leave it at once (a decoder fed at volume).
     pub uart: bool,
@@ -66,7 +66,7 @@ impl Default for Options {
         Self {
             actuator: Actuator::PRODUCT,
             noise: false,
-            link: ema::liveness::Settings::default(),
+            link: ema::device::liveness::Settings::default(),
             uart: true,
         }
     }
@@ -350,9 +350,9 @@ impl VirtualBoard {
             Injection::PositionOpen(open) => self.plant.position_open = open,
             Injection::Analog { value, current } => {
                 let per_code = if current {
-                    f64::from(ema::analog::CURRENT_A_PER_CODE)
+                    f64::from(ema::device::analog::CURRENT_A_PER_CODE)
                 } else {
-                    f64::from(ema::analog::VOLTAGE_V_PER_CODE)
+                    f64::from(ema::device::analog::VOLTAGE_V_PER_CODE)
                 };
                 self.plant.analog_code = (value / per_code).round().clamp(0.0, 4095.0) as u16;
             }
@@ -582,7 +582,7 @@ impl VirtualBoard {
         }
         // The window watchdog: a few periods without a feed reset the chip.
         self.unfed = if ticked.feed { 0 } else { self.unfed + 1 };
-        if self.unfed > ema::guard::WATCHDOG_QUIET_PERIODS {
+        if self.unfed > ema::device::guard::WATCHDOG_QUIET_PERIODS {
             let fault = if latched == Some(Fault::MainLoopStalled) {
                 Fault::MainLoopStalled
             } else {

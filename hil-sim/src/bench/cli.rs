@@ -23,10 +23,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, ensure, Context};
 use clap::{Parser, Subcommand};
-use ema::actuator::{Actuator, Magnetics};
-use ema::commission::{self, Report};
-use ema::params::{self, Kind, Params};
-use ema::protocol::{
+use ema::control::actuator::{Actuator, Magnetics};
+use ema::device::commission::{self, Report};
+use ema::device::params::{self, Kind, Params};
+use ema::device::protocol::{
     Build, CaptureState, Command, Commissioned, LoadError, Message, Mode, Reply, Signal, Source,
     Status, Trigger, Value, CHUNK_SAMPLES,
 };
@@ -39,7 +39,7 @@ use crate::commissioning::{Holds, Mechanics};
 use crate::report::{self, sig, Figure, Panel, Series, Table};
 
 /// The link's speed \[baud\]: one definition, the core's, which the firmware's UART uses.
-pub use ema::protocol::BAUD;
+pub use ema::device::protocol::BAUD;
 
 /// Host tool for a board on a bench (or the virtual board).
 #[derive(Debug, Parser)]
@@ -611,7 +611,7 @@ fn measure_mechanics<P: Port>(
         probe.half_ticks
     )?;
     let mut probes: [Vec<Vec<crate::commissioning::ProbeSample>>; crate::actuator::SEQUENCE.len()];
-    let stored = matches!(status(link)?.params, ema::protocol::Source::Stored);
+    let stored = matches!(status(link)?.params, ema::device::protocol::Source::Stored);
     let mut attempt = 0;
     let holds = loop {
         let tuning = crate::commissioning::hold_tuning(&m, attempt)?;
@@ -919,7 +919,7 @@ pub fn commissioned_params(
 fn commissioned_sets(
     board: &Actuator,
     measured: &Actuator,
-    tuning: &ema::actuator::Tuning,
+    tuning: &ema::control::actuator::Tuning,
 ) -> anyhow::Result<Vec<(&'static str, Value)>> {
     let mut sets: Vec<(&str, Value)> = commissioned_params(board, measured)?
         .into_iter()
@@ -958,7 +958,7 @@ fn apply_commissioned<P: Port>(
     link: &mut Link<P>,
     board: &Actuator,
     measured: &Actuator,
-    tuning: &ema::actuator::Tuning,
+    tuning: &ema::control::actuator::Tuning,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
     let sets = commissioned_sets(board, measured, tuning)?;
@@ -1183,7 +1183,7 @@ pub fn console<P: Port>(
 /// The file does not serialise or does not validate (the board measured values no
 /// actuator can have).
 pub fn actuator_file(
-    file: &ema::actuator::Actuator,
+    file: &ema::control::actuator::Actuator,
     report: &Report,
     mechanics: Option<&Mechanics>,
 ) -> anyhow::Result<String> {
@@ -1666,7 +1666,8 @@ pub fn capture<P: Port>(
         .without("energy [J]");
     let metrics_csv = a.out.join("metrics.csv");
     metrics.write_csv(&metrics_csv)?;
-    let pts = |f: &dyn Fn(&ema::protocol::Sample) -> f64, v: &[ema::protocol::Sample]| {
+    let pts = |f: &dyn Fn(&ema::device::protocol::Sample) -> f64,
+               v: &[ema::device::protocol::Sample]| {
         v.iter()
             .enumerate()
             .map(|(k, s)| (capture.t_s(k, rate), f(s)))
@@ -1808,11 +1809,11 @@ fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     // As fast as it can, the board's ticks outrun a host's heartbeat paced in real time:
     // its link timeout is off then (see `Options::link`).
     let link = if a.speed > 0.0 {
-        ema::liveness::Settings::default()
+        ema::device::liveness::Settings::default()
     } else {
-        ema::liveness::Settings {
+        ema::device::liveness::Settings {
             timeout_s: 0.0,
-            ..ema::liveness::Settings::default()
+            ..ema::device::liveness::Settings::default()
         }
     };
     let mut board = VirtualBoard::new(Options {
@@ -1896,7 +1897,7 @@ mod tests {
     fn two_measured_inductances_reach_a_geometry_board_as_its_sides_and_iron() {
         let board = Actuator::PRODUCT;
         let nominal = board.plant().unwrap();
-        let at = |p: &ema::model::Plant, x: f32| p.magnetics.inductance_h(p.gap_m(x));
+        let at = |p: &ema::control::model::Plant, x: f32| p.magnetics.inductance_h(p.gap_m(x));
         let stroke = board.mechanics.stroke_m;
         let measured = Actuator {
             magnetics: Magnetics::Inductance {

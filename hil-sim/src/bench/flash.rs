@@ -2,8 +2,8 @@
 //! lose its power at any single write or erase.
 //!
 //! The store's two pages are the chip's two 16 KiB sectors the firmware keeps its
-//! parameters in ([`ema::store::SECTOR_BYTES`]); byte writes, as the HAL programs them. A write can
-//! only clear bits; an erase sets a whole page to `0xFF`.
+//! parameters in ([`ema::device::store::SECTOR_BYTES`]); byte writes, as the HAL programs
+//! them. A write can only clear bits; an erase sets a whole page to `0xFF`.
 //!
 //! **Power cuts.** [`Flash::cut_after`] arms a cut: the flash counts every byte it
 //! programs and every page it erases as one step, and at the chosen step the power goes:
@@ -18,7 +18,7 @@ use embedded_storage::nor_flash::{
 };
 
 /// Bytes per erase page (the STM32F405 sector the store uses).
-pub const PAGE: usize = ema::store::SECTOR_BYTES;
+pub const PAGE: usize = ema::device::store::SECTOR_BYTES;
 /// Pages of the store.
 pub const PAGES: usize = 2;
 

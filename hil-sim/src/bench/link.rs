@@ -10,8 +10,8 @@
 //!   seen meanwhile.
 //! * **Heartbeat.** While the link is open, a thread sends
 //!   [`Command::Heartbeat`] whenever no request has gone out for [`HEARTBEAT`], a quarter
-//!   of the shortest timeout a board accepts ([`ema::liveness::MIN_TIMEOUT_S`]): an armed
-//!   board keeps its host for as long as this process runs, computing or waiting
+//!   of the shortest timeout a board accepts ([`ema::device::liveness::MIN_TIMEOUT_S`]): an
+//!   armed board keeps its host for as long as this process runs, computing or waiting
 //!   included, and disarms within its `link.timeout_s` once the process ends.
 
 use std::collections::VecDeque;
@@ -22,7 +22,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context};
-use ema::protocol::{
+use ema::device::protocol::{
     self, Command, Framer, Message, Reply, Request, Started, Telemetry, MAX_FRAME,
 };
 
@@ -53,7 +53,7 @@ impl<P: Read + Write + Send + 'static> Port for P {}
 
 /// How long the link may go without a request before the heartbeat thread sends one.
 pub const HEARTBEAT: Duration =
-    Duration::from_micros((ema::liveness::MIN_TIMEOUT_S * 250_000.0) as u64);
+    Duration::from_micros((ema::device::liveness::MIN_TIMEOUT_S * 250_000.0) as u64);
 
 /// Frames kept for a request to find its reply among (older ones are replies nobody
 /// waits for: the heartbeat's, or a timed-out request's).

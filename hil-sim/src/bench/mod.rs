@@ -2,7 +2,7 @@
 //! virtual board it is tested against ([`board`], on a simulated flash, [`flash`]).
 //!
 //! The messages, the framing and the board's application are the core's
-//! ([`ema::protocol`], [`ema::device`]): the host tool, the virtual board and the
+//! ([`ema::device::protocol`], [`ema::device`]): the host tool, the virtual board and the
 //! firmware share one definition. A capture is judged with the simulator's own metrics
 //! ([`crate::metrics`]) against the simulator's prediction for the board's parameters
 //! ([`prediction`]).
@@ -38,7 +38,7 @@
 //! **The link.** The tool starts each process at a random sequence number with the port's
 //! input flushed, pairs every reply with its request by number, and keeps a heartbeat
 //! going while it runs ([`link`]): an armed board stays armed for as long as the tool
-//! talks to it and disarms `link.timeout_s` after it stops ([`ema::liveness`]). The
+//! talks to it and disarms `link.timeout_s` after it stops ([`ema::device::liveness`]). The
 //! single-command `arm` and `move` therefore leave the board armed only for that long;
 //! `console` runs a whole session over one link and disarms at the end of its input.
 //!
@@ -65,9 +65,9 @@ pub mod cli;
 pub mod flash;
 pub mod link;
 
-use ema::params::Params;
-use ema::protocol::{Chunk, Invalid, LoadError, Reason, Refusal, Sample, Source};
-use ema::supervisor::Fault;
+use ema::control::supervisor::Fault;
+use ema::device::params::Params;
+use ema::device::protocol::{Chunk, Invalid, LoadError, Reason, Refusal, Sample, Source};
 
 use crate::metrics::{self, Metrics};
 use crate::scenario::{Initial, Reference};
@@ -338,7 +338,7 @@ pub fn prediction_samples(run: &Run, capture: &Capture, at_s: f64, rate_hz: f64)
                 r_m: last.r_shaped_m as f32,
                 x_m: mean(&|p| p.x_meas_m as f32),
                 v_mps: last.v_est_mps as f32,
-                i_a: ema::math::sqrt(mean(&|p| {
+                i_a: ema::control::math::sqrt(mean(&|p| {
                     let i = p.i_meas_a as f32;
                     i * i
                 }))

@@ -152,7 +152,7 @@ pub fn drawn_table(drawn: &[crate::drawn::Drawn]) -> anyhow::Result<Table> {
 }
 
 /// The coil's time constants at the two stops, `open-closed` \[ms\].
-fn coil_ms(s: &ema::actuator::TimeScales) -> String {
+fn coil_ms(s: &ema::control::actuator::TimeScales) -> String {
     format!(
         "{}-{}",
         sig(f64::from(s.coil_open_s) * 1e3, 2),

@@ -1,5 +1,5 @@
 //! `hil-sim golden`: records the golden traces the Cortex-M4F must reproduce bit for bit
-//! ([`crate::golden`]), one per reference case of `ema::trace::CASES`, into
+//! ([`crate::golden`]), one per reference case of `ema::control::trace::CASES`, into
 //! `tests/golden/` of the workspace (or `--dir`).
 
 use std::io::Write;

@@ -304,7 +304,7 @@ pub fn draws_table(draws: &[Draw]) -> Table {
         plant.push(
             m.first_fault
                 .and_then(|f| f.fault)
-                .map_or("", ema::supervisor::Fault::name)
+                .map_or("", ema::control::supervisor::Fault::name)
                 .into(),
         );
         let seg = report::metrics_table(&[("", m)]);
@@ -422,7 +422,9 @@ pub enum Class {
 pub fn classify(d: &Draw, t: &Targets) -> Class {
     if let Some(f) = d.metrics.first_fault {
         return Class::Fault {
-            name: f.fault.map_or("unnamed", ema::supervisor::Fault::name),
+            name: f
+                .fault
+                .map_or("unnamed", ema::control::supervisor::Fault::name),
             coasting: d.coasting_after_fault,
         };
     }

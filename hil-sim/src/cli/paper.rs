@@ -19,7 +19,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use ema::law;
+use ema::control::law;
 
 use crate::report::{
     self, decimated, figures, figures::Case, plot::Legend, sig, Figure, Panel, Series, Table,
@@ -406,7 +406,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                 out,
                 "note: the z1-z2 run from {} mm faulted ({}) at {} s",
                 sig(x0 * 1e3, 2),
-                f.fault.map_or("?", ema::supervisor::Fault::name),
+                f.fault.map_or("?", ema::control::supervisor::Fault::name),
                 sig(f.t_s, 3)
             )?;
         }

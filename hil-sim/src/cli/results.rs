@@ -153,7 +153,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
          runs `results --check`, which fails when a figure here no longer matches the code. \
          Do not edit by hand. Definitions of every metric: `hil-sim/src/metrics.rs`; the \
          product's targets: `hil-sim/src/targets.rs`; how each setting follows from an \
-         actuator's data: the `ema::actuator` docs.\n"
+         actuator's data: the `ema::control::actuator` docs.\n"
     )?;
 
     writeln!(out, "the paper's example ...")?;
@@ -357,7 +357,7 @@ fn rederived(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result
         "worst metric / its target",
         "same",
     ]);
-    let gains = |g: &ema::actuator::Tuning| {
+    let gains = |g: &ema::control::actuator::Tuning| {
         format!(
             "{} / {} / {}",
             sig(f64::from(g.alpha_per_s), 3),

@@ -76,7 +76,7 @@ pub(crate) fn write_notes(out: &mut dyn Write, m: &Metrics) -> anyhow::Result<()
         Some(f) => writeln!(
             out,
             "first fault: {} at {} s (the bridge coasts from then on)",
-            f.fault.map_or("?", ema::supervisor::Fault::name),
+            f.fault.map_or("?", ema::control::supervisor::Fault::name),
             sig(f.t_s, 4)
         )?,
     }

@@ -139,7 +139,7 @@ pub fn decimate(trace: &[Sample], every: usize) -> Vec<Row> {
                 vbus_v: s.vbus_v,
                 duty: s.duty,
                 mode: s.mode.name(),
-                fault: s.fault.map_or("", ema::supervisor::Fault::name),
+                fault: s.fault.map_or("", ema::control::supervisor::Fault::name),
             })
         })
         .collect()

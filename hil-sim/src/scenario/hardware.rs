@@ -34,7 +34,7 @@ impl TruePlant {
     /// The plant parameters this describes for a controller whose nominal plant is
     /// `nominal`.
     #[must_use]
-    pub fn resolve(&self, nominal: &ema::model::Plant) -> Params {
+    pub fn resolve(&self, nominal: &ema::control::model::Plant) -> Params {
         match self {
             TruePlant::Nominal { force } => Params::from_core(nominal, *force),
             TruePlant::Given(p) => p.clone(),
@@ -86,7 +86,7 @@ pub struct Bridge {
     /// The board's over-current comparator on the break input: at this `|i|` the bridge
     /// switches off within the substep, without the tick, and stays off; the next tick
     /// latches `hardware_trip` \[A\]. `None`: no comparator (the paper's setting). An
-    /// actuator's scenario has [`ema::actuator::Actuator::break_current_a`].
+    /// actuator's scenario has [`ema::control::actuator::Actuator::break_current_a`].
     pub break_current_a: Option<f32>,
 }
 

@@ -48,8 +48,9 @@ pub enum Injected {
     },
     /// The control interrupt misses `ticks` deadlines in a row: no tick runs and the
     /// bridge keeps its last state; when the interrupt runs again the firmware's guard
-    /// (`ema::guard`) sees the gap and latches the overrun, and a stall longer than the
-    /// window watchdog's early wake-up is ended by the watchdog, which coasts the bridge.
+    /// (`ema::device::guard`) sees the gap and latches the overrun, and a stall longer than
+    /// the window watchdog's early wake-up is ended by the watchdog, which coasts the
+    /// bridge.
     MissedDeadlines {
         /// Missed periods.
         ticks: u32,

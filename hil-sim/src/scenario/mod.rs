@@ -2,9 +2,9 @@
 //! reference and duration. Every type here is serde-(de)serializable with unit-carrying
 //! field names, ready for scenario files.
 
-use ema::actuator::Actuator;
+use ema::control::actuator::Actuator;
+use ema::control::law;
 use ema::control::Settings;
-use ema::law;
 use serde::{Deserialize, Serialize};
 
 use crate::hal::{self, Supply};
@@ -109,8 +109,8 @@ impl InductanceProbe {
     /// The board's command that starts it.
     #[must_use]
     #[expect(clippy::cast_possible_truncation)]
-    pub fn command(&self) -> ema::protocol::Command<'static> {
-        ema::protocol::Command::Probe {
+    pub fn command(&self) -> ema::device::protocol::Command<'static> {
+        ema::device::protocol::Command::Probe {
             amplitude_a: self.amplitude_a as f32,
             half_ticks: self.half_ticks,
             cycles: self.cycles,
@@ -239,12 +239,13 @@ impl Scenario {
     }
 
     /// The product's realistic default at an ISR rate of `rate_hz` on a `supply_v`
-    /// supply: the product's actuator ([`ema::actuator::Actuator::PRODUCT`], the physical
-    /// convention) with every setting derived from it (the practical law, extended-state
-    /// observer, one sample of measurement delay, reference shaping, every fault
-    /// detector), judged as [`crate::actuator::scenario`] judges any actuator (converter
-    /// noise and delay, supply resistance, averaged bridge, nominal plant with frozen
-    /// fringing), on the paper's step from 1 mm to 3 mm from rest without current, 0.4 s.
+    /// supply: the product's actuator ([`ema::control::actuator::Actuator::PRODUCT`], the
+    /// physical convention) with every setting derived from it (the practical law,
+    /// extended-state observer, one sample of measurement delay, reference shaping, every
+    /// fault detector), judged as [`crate::actuator::scenario`] judges any actuator
+    /// (converter noise and delay, supply resistance, averaged bridge, nominal plant with
+    /// frozen fringing), on the paper's step from 1 mm to 3 mm from rest without current,
+    /// 0.4 s.
     ///
     /// # Errors
     /// A rate or supply the derivation refuses, by name.
@@ -594,7 +595,7 @@ mod tests {
     #[test]
     fn draws_stay_within_the_controller_bounds() {
         use rand::SeedableRng;
-        let nominal = ema::model::Plant::paper();
+        let nominal = ema::control::model::Plant::paper();
         let env = nominal.envelope().unwrap();
         let u = Uncertainty::default();
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
@@ -641,7 +642,7 @@ mod tests {
             rectangular_probability: f64::NAN,
         };
         assert!(bad.validate().is_err());
-        let mut nominal = ema::model::Plant::paper();
+        let mut nominal = ema::control::model::Plant::paper();
         nominal.bounds.s_hi_m2 = nominal.bounds.s_lo_m2;
         let mut rng = rand_pcg::Pcg64::seed_from_u64(0);
         let p = bad.draw(&nominal, &mut rng);
@@ -655,7 +656,7 @@ mod tests {
         let sc = Scenario::paper(20_000.0).with_sensors(Sensors::Adc(Adc::default()));
         sc.validate().unwrap();
         let mut board = sc.clone();
-        board.controller.sense = ema::sense::Calibration::board();
+        board.controller.sense = ema::control::sense::Calibration::board();
         assert_eq!(
             board.validate().unwrap_err().name(),
             "controller.sense.vbus.scale"

@@ -64,7 +64,7 @@ impl Uncertainty {
     /// The controller's own uncertainty set: the spreads its plant's tolerances state,
     /// both force models and both surface models equally likely.
     #[must_use]
-    pub fn of(plant: &ema::model::Plant) -> Self {
+    pub fn of(plant: &ema::control::model::Plant) -> Self {
         let t = &plant.tolerance;
         Self {
             resistance_rel: f64::from(t.resistance),
@@ -115,15 +115,18 @@ impl Uncertainty {
     /// Draws a true plant around the controller's nominal plant `nominal`: mechanics and
     /// resistance within the relative spreads, each gap's surface anywhere within the
     /// physical surface bounds `[S_lo, S_hi]` over the whole stroke
-    /// (`ema::model::Plant::physical_bounds`: the paper's bounds, which the controller's
-    /// contain) (constant, or a
-    /// square pole `(a + k g)^2` whose surface at the two ends of the gap range is drawn
-    /// inside the bounds), and the force model.
+    /// (`ema::control::model::Plant::physical_bounds`: the paper's bounds, which the
+    /// controller's contain) (constant, or a square pole `(a + k g)^2` whose surface at the
+    /// two ends of the gap range is drawn inside the bounds), and the force model.
     ///
     /// Never panics: spreads and probabilities outside their ranges (see
     /// [`Uncertainty::validate`]) are clamped into them, and degenerate bounds give the
     /// middle surface.
-    pub fn draw<R: Rng + ?Sized>(&self, nominal: &ema::model::Plant, rng: &mut R) -> Params {
+    pub fn draw<R: Rng + ?Sized>(
+        &self,
+        nominal: &ema::control::model::Plant,
+        rng: &mut R,
+    ) -> Params {
         let mut p = Params::from_core(nominal, ForceModel::Frozen);
         let physical = nominal.physical_bounds();
         let s_lo = f64::from(physical.s_lo_m2) * (1.0 + DRAW_MARGIN);

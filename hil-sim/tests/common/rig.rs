@@ -7,7 +7,7 @@ use std::sync::{mpsc, Arc, Mutex};
 use std::thread;
 use std::time::Duration;
 
-use ema::protocol::{Command, Message, Reply};
+use ema::device::protocol::{Command, Message, Reply};
 use hil_sim::bench::board::{Dropped, Injection, Options, VirtualBoard};
 use hil_sim::bench::cli;
 use hil_sim::bench::link::Link;
@@ -32,7 +32,7 @@ impl Rig {
     /// link timeout is off (a host's heartbeat, paced in real time, cannot keep up with a
     /// board that runs faster: [`Options::link`]).
     pub fn new(options: Options) -> Self {
-        let link = ema::liveness::Settings {
+        let link = ema::device::liveness::Settings {
             timeout_s: 0.0,
             ..options.link
         };
@@ -110,7 +110,7 @@ impl Rig {
         self.link.start_heartbeat();
     }
 
-    pub fn status(&mut self) -> ema::protocol::Status<'static> {
+    pub fn status(&mut self) -> ema::device::protocol::Status<'static> {
         cli::status(&mut self.link).unwrap()
     }
 

@@ -8,15 +8,15 @@ use core::sync::atomic::{compiler_fence, Ordering};
 use cortex_m::peripheral::{NVIC, SCB};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
+use ema::control::supervisor::Fault;
+use ema::device::guard::{self, End, Start};
+use ema::device::params::{Board, Params};
+use ema::device::protocol::{Build, Sample, Source};
+use ema::device::store::{self, Store};
 use ema::device::{
     Action, Controller, Dispatcher, Inputs, IsrEnds, MainEnds, Queues, ANSWER_SLOTS,
     CAPTURE_CAPACITY, ORDER_SLOTS, SAMPLE_SLOTS,
 };
-use ema::guard::{self, End, Start};
-use ema::params::{Board, Params};
-use ema::protocol::{Build, Sample, Source};
-use ema::store::{self, Store};
-use ema::supervisor::Fault;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 use stm32f4xx_hal::gpio::{Alternate, Pin};
@@ -232,7 +232,7 @@ enum StartError {
         down: bool,
     },
     /// The settings do not build.
-    Settings(ema::config::Error),
+    Settings(ema::control::config::Error),
     /// The parameter store's range is not whole sectors.
     Store,
 }
@@ -341,7 +341,7 @@ fn refused(e: StartError, attempt: u8) -> ! {
 
 fn status_line(s: &Snapshot) {
     let fault = Fault::from_code(s.fault);
-    let mode = ema::bridge::Mode::from_code(s.mode);
+    let mode = ema::control::bridge::Mode::from_code(s.mode);
     defmt::info!(
         "t={=u32}s {=str} fault={} bridge={} x={=i32}um i={=i32}mA | cycles/tick mean {=u32} max {=u32} (max since start {=u32}, period {=u32}) | overruns {=u32}",
         s.ticks / board::CONTROL_RATE_HZ,
@@ -508,14 +508,14 @@ fn bring_up(
         defmt::info!(
             "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: used",
             zero,
-            ema::sense::CURRENT_ZERO_CODE,
+            ema::control::sense::CURRENT_ZERO_CODE,
             spread
         );
     } else {
         defmt::info!(
             "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: REFUSED",
             zero,
-            ema::sense::CURRENT_ZERO_CODE,
+            ema::control::sense::CURRENT_ZERO_CODE,
             spread
         );
     }
@@ -533,7 +533,7 @@ fn bring_up(
         "law {=str}, rate {=f32} Hz; disarmed: the bench link arms and moves ({=u32} baud on USART2)",
         boot.install.control.law().name(),
         rate_hz,
-        ema::protocol::BAUD
+        ema::device::protocol::BAUD
     );
 
     // SAFETY: `start` gets here at most once (`pac::Peripherals::take` above succeeds only
@@ -607,7 +607,7 @@ fn bring_up(
 }
 
 /// Logs where the parameters came from and what the save this start made did.
-fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::protocol::StoreError>>) {
+fn log_boot(source: &Source<'_>, saved: Option<Result<(), ema::device::protocol::StoreError>>) {
     match saved {
         None => defmt::info!("parameters: {}", From(source)),
         Some(Ok(())) => defmt::info!("parameters saved; in use: {}", From(source)),

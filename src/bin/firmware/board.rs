@@ -6,10 +6,10 @@
 //! | bridge enable (EN) | PA9 | TIM1_CH2 (AF1) | low = coast; a timer output, so that it drops with the timer's main output (break, debugger halt, fault handlers) |
 //! | bridge direction (PH) | PA10 | TIM1_CH3 (AF1) | high = forward; a timer output, so that it changes with the duty at the period boundary |
 //! | bridge fault (BKIN) | PB12 | TIM1_BKIN (AF1) | active low: the driver's fault output and the current comparator, open drain, wired together |
-//! | position sensor | PC0 | ADC123_IN10 | the span within the range, room left at both ends for the sensor's tolerance ([`ema::actuator::Actuator::calibration`]) |
-//! | coil current | PC1 | ADC123_IN11 | bidirectional, mid-scale at 0 A ([`ema::sense::CURRENT_A_PER_CODE`]) |
-//! | bus voltage | PC2 | ADC123_IN12 | 22:1 divider ([`ema::sense::VBUS_V_PER_CODE`]) |
-//! | bench link TX | PA2 | USART2_TX (AF7), DMA1 stream 6 | [`ema::protocol::BAUD`] 8N1, 3.3 V levels, to any USB-serial adapter's RX |
+//! | position sensor | PC0 | ADC123_IN10 | the span within the range, room left at both ends for the sensor's tolerance ([`ema::control::actuator::Actuator::calibration`]) |
+//! | coil current | PC1 | ADC123_IN11 | bidirectional, mid-scale at 0 A ([`ema::control::sense::CURRENT_A_PER_CODE`]) |
+//! | bus voltage | PC2 | ADC123_IN12 | 22:1 divider ([`ema::control::sense::VBUS_V_PER_CODE`]) |
+//! | bench link TX | PA2 | USART2_TX (AF7), DMA1 stream 6 | [`ema::device::protocol::BAUD`] 8N1, 3.3 V levels, to any USB-serial adapter's RX |
 //! | bench link RX | PA3 | USART2_RX (AF7), DMA1 stream 5 | from the adapter's TX; the internal pull-up holds the line idle when nothing is connected |
 //! | crystal | PH0/PH1 | HSE | 8 MHz |
 //! | debug | PA13/PA14 | SWD | probe-rs, defmt over RTT |
@@ -70,15 +70,15 @@
 //! checks both that the update event comes at the top and that the conversions end just
 //! after it, and refuses to run otherwise.
 //!
-//! The sensor scales are the core's constants ([`ema::sense`]); only the current zero is
-//! measured here, at start, with the bridge off.
+//! The sensor scales are the core's constants ([`ema::control::sense`]); only the current
+//! zero is measured here, at start, with the bridge off.
 
-use ema::actuator::Actuator;
-use ema::config;
+use ema::control::actuator::Actuator;
+use ema::control::config;
+use ema::control::model::Convention;
+use ema::control::sense::{Frame, CURRENT_ZERO_CODE};
 use ema::control::Settings;
-use ema::guard::{Watchdog, WATCHDOG_QUIET_PERIODS};
-use ema::model::Convention;
-use ema::sense::{Frame, CURRENT_ZERO_CODE};
+use ema::device::guard::{Watchdog, WATCHDOG_QUIET_PERIODS};
 
 /// The actuator this firmware is built for: the file given as `EMA_ACTUATOR` at build
 /// time (validated by `build.rs`, which fails the build with the field named), or the
@@ -137,7 +137,7 @@ pub const POSITION_CHANNEL: u8 = 10;
 /// ADC channel of the bus-voltage divider.
 pub const VBUS_CHANNEL: u8 = 12;
 /// ADC channel of the analog set-point input (PC3, ADC123_IN13): its input stage (divider
-/// for 0-10 V, shunt for 4-20 mA) is the board's, its scaling `ema::analog`'s.
+/// for 0-10 V, shunt for 4-20 mA) is the board's, its scaling `ema::device::analog`'s.
 pub const ANALOG_CHANNEL: u8 = 13;
 /// The injected sequence, in conversion order: ADC channel and what it measures; results
 /// land in JDR1 to JDR4. The one table both the set-up ([`INJECTED_SEQUENCE`],
@@ -227,9 +227,9 @@ pub const ADC_END_AFTER_TOP_COUNTS: u32 = (ADC_TRIGGER_LATENCY_CYCLES
     - ADC_TRIGGER_LEAD_COUNTS;
 /// Highest duty \[per mille\] whose off-time holds the whole sequence, trigger to last
 /// conversion: above it, a switching edge falls inside a conversion. The current's own
-/// sample is kept clear by the tick up to 100 % (`ema::bridge::max_modulation`: duties
-/// between 90.7 % and 100 % at 20 kHz are snapped to one or the other); the position and
-/// the bus, converted 1.9 us either side of it, are filtered and far less sensitive.
+/// sample is kept clear by the tick up to 100 % (`ema::control::bridge::max_modulation`:
+/// duties between 90.7 % and 100 % at 20 kHz are snapped to one or the other); the position
+/// and the bus, converted 1.9 us either side of it, are filtered and far less sensitive.
 pub const SEQUENCE_IN_OFF_TIME_MAX_PERMILLE: u32 = 1000
     - ((if ADC_TRIGGER_LEAD_COUNTS > ADC_END_AFTER_TOP_COUNTS {
         ADC_TRIGGER_LEAD_COUNTS
@@ -354,7 +354,7 @@ pub const IWDG_BOOT: IwdgTimeout = IwdgTimeout::new(6, 4000);
 /// starts after them; its link-time check fails if the two disagree).
 pub const STORE_RANGE: core::ops::Range<u32> = 0x0000_4000..0x0000_C000;
 /// Size of the store's sectors \[bytes\].
-pub const STORE_SECTOR: usize = ema::store::SECTOR_BYTES;
+pub const STORE_SECTOR: usize = ema::device::store::SECTOR_BYTES;
 const _: () = assert!(
     (STORE_RANGE.end - STORE_RANGE.start) as usize == 2 * STORE_SECTOR
         && (STORE_RANGE.start as usize).is_multiple_of(STORE_SECTOR)
@@ -371,10 +371,10 @@ pub const BREAK_PORT: char = 'B';
 /// Pin number of the break input.
 pub const BREAK_PIN: u8 = 12;
 /// Trip level the board's comparator on the current shunt must be set to, either direction
-/// \[A\]: [`ema::actuator::Actuator::break_current_a`], 20 % above the software trip (the
-/// actuator's peak current, 13.2 A on the product's), inside the current channel's full
-/// scale (the actuator file's validation; checked again below). With the product's
-/// actuator, 15.84 A of its +-16.5 A.
+/// \[A\]: [`ema::control::actuator::Actuator::break_current_a`], 20 % above the software
+/// trip (the actuator's peak current, 13.2 A on the product's), inside the current
+/// channel's full scale (the actuator file's validation; checked again below). With the
+/// product's actuator, 15.84 A of its +-16.5 A.
 pub const BREAK_CURRENT_A: f32 = ACTUATOR.break_current_a();
 
 /// The bus voltage the board must stay below when the coil's energy returns to it \[V\]:
@@ -444,13 +444,13 @@ const _: () = {
     assert!(PWM_MAX_DUTY as u32 == PWM_ARR + 1);
     // At the product's 20 kHz the timer is the reference board's, the resolution the
     // golden traces are recorded at.
-    assert!(PWM_HZ != 20_000 || PWM_ARR == ema::bridge::BOARD_PWM_ARR as u32);
+    assert!(PWM_HZ != 20_000 || PWM_ARR == ema::control::bridge::BOARD_PWM_ARR as u32);
     assert!(CONTROL_PERIOD_CYCLES * CONTROL_RATE_HZ == SYSCLK_HZ);
     assert!(ADC_CLK_HZ <= 36_000_000);
     // The core's maximum modulation keeps this board's current sample clear.
     assert!(
-        ema::bridge::CURRENT_SAMPLING_S == ADC_SAMPLE_CYCLES as f32 / ADC_CLK_HZ as f32,
-        "ema::bridge::CURRENT_SAMPLING_S must be the current's sampling phase"
+        ema::control::bridge::CURRENT_SAMPLING_S == ADC_SAMPLE_CYCLES as f32 / ADC_CLK_HZ as f32,
+        "ema::control::bridge::CURRENT_SAMPLING_S must be the current's sampling phase"
     );
     // The conversions end early in the period: the tick has over 40 us left.
     assert!(ADC_SEQUENCE_NS < 10_000);

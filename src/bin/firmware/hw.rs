@@ -12,7 +12,7 @@
 use core::convert::Infallible;
 
 use cortex_m::peripheral::{DCB, DWT};
-use ema::sense::Frame;
+use ema::control::sense::Frame;
 use stm32f4xx_hal::gpio;
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -125,7 +125,7 @@ fn enable_off_now() {
 }
 
 /// The H-bridge as the firmware drives it.
-pub type Bridge = ema::bridge::HBridge<Pwm, Line>;
+pub type Bridge = ema::control::bridge::HBridge<Pwm, Line>;
 
 /// Why the clock tree did not start.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]

@@ -14,9 +14,9 @@
 //! ground off the power stage's, which a USB cable straight to the board would not. The
 //! price is the adapter and the rate below.
 //!
-//! At [`ema::protocol::BAUD`] (460 800 baud, 46 bytes per millisecond), the receive ring
-//! ([`RX_RING`] bytes) holds more than 5 ms of input; the main loop reads it every 50 us
-//! except while it writes the flash, which only happens before the link starts (see
+//! At [`ema::device::protocol::BAUD`] (460 800 baud, 46 bytes per millisecond), the receive
+//! ring ([`RX_RING`] bytes) holds more than 5 ms of input; the main loop reads it every 50
+//! us except while it writes the flash, which only happens before the link starts (see
 //! `app`). A host that sends more than the ring holds while the dispatcher waits for an
 //! answer (one tick) would lose bytes: the CRC of the frame then refuses it by name.
 
@@ -56,7 +56,7 @@ const SR_TC: u16 = 1 << 6;
 /// USART_BRR at 16x oversampling: PCLK1 / baud, rounded (42 MHz / 460 800 = 91.1: 91,
 /// 0.16 % fast).
 pub const USART_BRR: u16 = {
-    let brr = (board::PCLK1_HZ + ema::protocol::BAUD / 2) / ema::protocol::BAUD;
+    let brr = (board::PCLK1_HZ + ema::device::protocol::BAUD / 2) / ema::device::protocol::BAUD;
     assert!(brr >= 16 && brr < 1 << 16);
     brr as u16
 };
@@ -80,7 +80,7 @@ fn usart2() -> &'static pac::usart1::RegisterBlock {
 }
 
 impl Link {
-    /// USART2 at [`ema::protocol::BAUD`], 8N1, its pins ([`board::LINK_TX_PIN`],
+    /// USART2 at [`ema::device::protocol::BAUD`], 8N1, its pins ([`board::LINK_TX_PIN`],
     /// [`board::LINK_RX_PIN`]) already in their alternate function; reception running.
     pub fn start(
         _usart: pac::USART2,

@@ -16,7 +16,7 @@
 //! A power-on, the reset pin or a software reset is a person's decision: nothing is
 //! latched, and a cause still recorded is only logged.
 
-use ema::supervisor::Fault;
+use ema::control::supervisor::Fault;
 
 /// What stopped the firmware.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,6 +1,6 @@
 //! The status the interrupt publishes for the main loop's status line (the cycle
 //! statistics are the controller's, `ema::device::Cycles`; overruns the guard's,
-//! `ema::guard`). Plain logic, tested on the host; the main loop only reads
+//! `ema::device::guard`). Plain logic, tested on the host; the main loop only reads
 //! [`Published`].
 
 use core::sync::atomic::{fence, AtomicI32, AtomicU32, Ordering};

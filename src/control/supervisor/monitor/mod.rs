@@ -86,10 +86,10 @@ pub use thermal::Thermal;
 pub use tracking::Tracking;
 
 use super::Fault;
-use crate::config::{self, Error};
-use crate::math;
-use crate::model::{Envelope, Plant};
-use crate::sense::Calibration;
+use crate::control::config::{self, Error};
+use crate::control::math;
+use crate::control::model::{Envelope, Plant};
+use crate::control::sense::Calibration;
 
 /// The optional detectors.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -203,8 +203,8 @@ pub struct Config {
     noise_a: f32,
     band_m: f32,
     envelope: Envelope,
-    nominal: crate::model::Nominal,
-    convention: crate::model::Convention,
+    nominal: crate::control::model::Nominal,
+    convention: crate::control::model::Convention,
     ts_s: f32,
     r_nom: f32,
     r_lo: f32,

@@ -1,7 +1,7 @@
 //! Stuck position sensor (see [`Stuck`]).
 
 use super::{Config, Inputs, State};
-use crate::supervisor::Fault;
+use crate::control::supervisor::Fault;
 
 /// How much farther the reference may travel than the reading while the reading crosses
 /// its last two bands, for the reading to count as moving with it \[-\] (see [`Stuck`]).
@@ -31,8 +31,8 @@ pub const MOVING_RATIO: f32 = 1.5;
 ///   reference runs away from a static reading, and its first band crossings are slow
 ///   beside the reference: it is healthy, and not yet moving;
 /// * **the reading crossed its last two bands within the deadline**
-///   ([`crate::supervisor::DEADLINE_S`], in interrupt periods), at least two bands per
-///   deadline: a slower reading could not be named within the deadline anyway, and a
+///   ([`crate::control::supervisor::DEADLINE_S`], in interrupt periods), at least two bands
+///   per deadline: a slower reading could not be named within the deadline anyway, and a
 ///   creep that slow (an armature that the start-up left ahead of a slow reference, at a
 ///   fraction of a code per period) crosses its bands as much by the converter's noise as
 ///   by its motion, which can make it look as if it moved with the reference;

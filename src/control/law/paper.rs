@@ -12,8 +12,8 @@
 //! u = -alpha3 sign(S)
 //! ```
 //!
-//! `g` is the airgap at `x1` ([`crate::model::Convention`]); `x3d'` is the backward
-//! difference of the sampled `x3d` over the configured sample period.
+//! `g` is the airgap at `x1` ([`crate::control::model::Convention`]); `x3d'` is the
+//! backward difference of the sampled `x3d` over the configured sample period.
 //!
 //! Corrections: (1) `x3d^2` is negative whenever `z2 > 0` (the magnet cannot pull the
 //! other way), so `x3d` is clipped to 0 there; (2) Theorem 3's `eps` is written with
@@ -24,8 +24,8 @@
 //! practical laws live beside it.
 //!
 //! ```
-//! use ema::law::{self, Law};
-//! use ema::model::Plant;
+//! use ema::control::law::{self, Law};
+//! use ema::control::model::Plant;
 //!
 //! let plant = Plant::paper();
 //! let cfg = law::paper::Gains::paper().build(&plant, 1.0 / 20_000.0).unwrap();
@@ -43,9 +43,9 @@
 //! ```
 
 use super::{Input, Law, Output};
-use crate::config::{self, Error, Reason};
-use crate::math;
-use crate::model::{Convention, Envelope, Plant};
+use crate::control::config::{self, Error, Reason};
+use crate::control::math;
+use crate::control::model::{Convention, Envelope, Plant};
 
 /// The paper's gains.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -321,7 +321,7 @@ impl Law for Config {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::law::Reference;
+    use crate::control::law::Reference;
 
     const TS: f32 = 1.0 / 20_000.0;
 

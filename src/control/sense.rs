@@ -9,8 +9,8 @@
 //! [`CURRENT_A_PER_CODE`], [`VBUS_V_PER_CODE`], [`RAIL_MARGIN_CODES`],
 //! [`NOISE_RMS_CODES`].
 
-use crate::config::{self, Error};
-use crate::supervisor::Fault;
+use crate::control::config::{self, Error};
+use crate::control::supervisor::Fault;
 
 /// Largest code of the 12-bit converters.
 pub const ADC_MAX_CODE: u16 = 4095;
@@ -30,8 +30,8 @@ pub const VBUS_V_PER_CODE: f32 = 72.6 / 4096.0;
 /// Codes this close to either rail mean an open or shorted sensor (1 % of full scale).
 pub const RAIL_MARGIN_CODES: u16 = 41;
 /// Converter noise of every channel, RMS \[code\]: what the fault detectors' noise
-/// allowances are built from (`ema::actuator`), and what the simulator's typical converter
-/// adds.
+/// allowances are built from (`ema::control::actuator`), and what the simulator's typical
+/// converter adds.
 pub const NOISE_RMS_CODES: f32 = 1.5;
 
 /// One set of simultaneous conversions, as read from the ADC.

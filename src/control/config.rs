@@ -19,7 +19,7 @@ pub struct Error {
 
 /// Why a parameter was refused. `S` is how another parameter's or a derived quantity's
 /// name is held: `&'static str` here, a borrowed `&str` in the bench link's messages
-/// ([`crate::protocol::Invalid`]), one definition and one text for both.
+/// ([`crate::device::protocol::Invalid`]), one definition and one text for both.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Reason<S = &'static str> {

@@ -45,8 +45,8 @@
 //! `|v| < 0.12 mm/s`), and an observer that rounds it away freezes its velocity estimate
 //! anywhere inside that band. The estimate handed out is the rounded `x`.
 
-use crate::config::{self, Error};
-use crate::model::{Dynamics, Plant};
+use crate::control::config::{self, Error};
+use crate::control::model::{Dynamics, Plant};
 
 /// Which model of the actuator the observer predicts with.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -27,7 +27,7 @@
 //! differentiating `L`). With a surface that grows with the gap, the energy-consistent force
 //! coefficient is `-dL/dg`, which the simulator models and checks against these bounds.
 
-use crate::config::{self, Error, Reason};
+use crate::control::config::{self, Error, Reason};
 
 /// Permeability of free space \[H/m\] (`4 pi 1e-7`).
 pub const MU0_H_PER_M: f32 = 1.256_637_1e-6;
@@ -62,7 +62,7 @@ impl Convention {
             Convention::Paper => x_m,
             Convention::Physical { gap_at_zero_m } => gap_at_zero_m - x_m,
         };
-        crate::math::max(g, 0.0)
+        crate::control::math::max(g, 0.0)
     }
 
     /// Sign of the motional back-EMF term in `x3' = (u - R x3 + s x2 x3 mu) / L`.
@@ -418,7 +418,7 @@ impl Envelope {
         let at_lo = force_coefficient(self.n2, self.rho_x_lo, self.rho0, g_m);
         let at_hi = force_coefficient(self.n2, self.rho_x_hi, self.rho0, g_m);
         // mu(r) rises for r < rho0/g and falls above it: the minimum is at an end.
-        crate::math::min(at_lo, at_hi)
+        crate::control::math::min(at_lo, at_hi)
     }
 
     /// Upper force-coefficient bound `mu_hi(g)` \[H/m\].
@@ -485,7 +485,7 @@ impl Nominal {
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct Tolerance {
     /// Airgap surfaces around the nominal fringing model: the actuators that exist (the
-    /// controller's [`Bounds`] may be wider, see [`crate::actuator`]) \[-\].
+    /// controller's [`Bounds`] may be wider, see [`crate::control::actuator`]) \[-\].
     #[cfg_attr(feature = "serde", serde(default = "default_surface"))]
     pub surface: f32,
     /// Moving mass \[-\].
@@ -768,7 +768,7 @@ impl Plant {
             return 0.0;
         }
         let mu = self.magnetics.force_coefficient_h_per_m(self.gap_m(x_m));
-        crate::math::sqrt(2.0 * force / mu)
+        crate::control::math::sqrt(2.0 * force / mu)
     }
 }
 

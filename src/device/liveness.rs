@@ -7,13 +7,13 @@
 //! * **The host.** While the board drives the coil for the link (armed or moving with the
 //!   set point from the link, or commissioning), a valid request must arrive at least
 //!   every `link.timeout_s`. Any request counts; a host with nothing to ask sends
-//!   [`crate::protocol::Command::Heartbeat`], the host tool every quarter of the timeout.
-//!   On expiry the board does what `link.on_timeout` says ([`OnTimeout`]): it disarms and
-//!   latches [`LinkTimeout`] (the default), or it holds the set point it has (a move in
-//!   progress ends at its target) and counts the timeout without latching. A
+//!   [`crate::device::protocol::Command::Heartbeat`], the host tool every quarter of the
+//!   timeout. On expiry the board does what `link.on_timeout` says ([`OnTimeout`]): it
+//!   disarms and latches [`LinkTimeout`] (the default), or it holds the set point it has (a
+//!   move in progress ends at its target) and counts the timeout without latching. A
 //!   commissioning drives the coil open loop and cannot hold: it always ends with the
-//!   fault. With the set point from the analog input the host is not needed to hold it,
-//!   and the link's silence is not a fault: the input has its own wire check.
+//!   fault. With the set point from the analog input the host is not needed to hold it, and
+//!   the link's silence is not a fault: the input has its own wire check.
 //! * **The main loop.** The main loop checks in on every pass ([`Pulse::main_loop_ran`]).
 //!   A check-in older than [`MAIN_LOOP_DEADLINE_S`] latches [`MainLoopStalled`] at once,
 //!   whatever the mode (the bridge coasts), and the tick stops feeding the
@@ -28,11 +28,11 @@
 //! exclusive accesses); the interrupt only compares a counter with the value it saw
 //! last, so wrapping is harmless.
 //!
-//! [`LinkTimeout`]: crate::supervisor::Fault::LinkTimeout
-//! [`MainLoopStalled`]: crate::supervisor::Fault::MainLoopStalled
+//! [`LinkTimeout`]: crate::control::supervisor::Fault::LinkTimeout
+//! [`MainLoopStalled`]: crate::control::supervisor::Fault::MainLoopStalled
 //!
 //! ```
-//! use ema::liveness::{OnTimeout, Pulse, Settings, Watch};
+//! use ema::device::liveness::{OnTimeout, Pulse, Settings, Watch};
 //!
 //! let link = Settings { timeout_s: 0.5, on_timeout: OnTimeout::Disarm };
 //! let cfg = link.build(20_000.0).unwrap();
@@ -61,8 +61,8 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{self, Error};
-use crate::math;
+use crate::control::config::{self, Error};
+use crate::control::math;
 
 /// The link's timeout unless set otherwise \[s\]: a host's heartbeat every quarter of it
 /// (125 ms) survives a desktop operating system's scheduling hiccups of tens of

@@ -1,7 +1,7 @@
 //! Tracking error too large for too long.
 
 use super::{Config, Inputs, State};
-use crate::supervisor::Fault;
+use crate::control::supervisor::Fault;
 
 /// Tracking error too large for too long.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -5,7 +5,7 @@ use super::*;
 const TS: f32 = 1.0 / 20_000.0;
 
 fn cfg(delay: u8) -> Config {
-    crate::actuator::Actuator::PRODUCT
+    crate::control::actuator::Actuator::PRODUCT
         .settings()
         .unwrap()
         .monitors
@@ -15,7 +15,7 @@ fn cfg(delay: u8) -> Config {
 
 /// Nominal Tustin step of the paper's coil at gap g.
 fn coil_step(g: f32, u: f32, i: f32, r: f32, l_scale: f32) -> f32 {
-    let l = crate::model::Magnetics::paper().inductance_h(g) * l_scale;
+    let l = crate::control::model::Magnetics::paper().inductance_h(g) * l_scale;
     let k = TS / l;
     i + k * (u - r * i) / (1.0 + 0.5 * r * k)
 }
@@ -293,7 +293,7 @@ fn tracking_error_must_last() {
 
 #[test]
 fn bad_monitor_settings_are_named() {
-    let mut m = crate::actuator::Actuator::PRODUCT
+    let mut m = crate::control::actuator::Actuator::PRODUCT
         .settings()
         .unwrap()
         .monitors;
@@ -302,7 +302,7 @@ fn bad_monitor_settings_are_named() {
         .build(&Plant::paper(), &Calibration::board(), TS, 0)
         .unwrap_err();
     assert_eq!(e.param, "monitors.residual.gross");
-    let mut m = crate::actuator::Actuator::PRODUCT
+    let mut m = crate::control::actuator::Actuator::PRODUCT
         .settings()
         .unwrap()
         .monitors;

@@ -2,8 +2,8 @@
 //! [monitors' documentation](super)).
 
 use super::{Config, Inputs, State};
-use crate::math;
-use crate::supervisor::Fault;
+use crate::control::math;
+use crate::control::supervisor::Fault;
 
 /// Relative allowance on the motional back-EMF in the residual: the force coefficient
 /// anywhere in its bounds (at most +-25 % of nominal for +-20 % surfaces) and the

@@ -21,7 +21,7 @@
 //! | 12 | 4 | number of ticks (records) |
 //! | 16 | 8 | settings identity: [`settings_hash`] of the [`Settings`] the trace was made with |
 //! | 24 | 20 | case name, UTF-8, NUL-padded: which entry of [`CASES`] rebuilds the settings |
-//! | 44 | 20 | law name ([`crate::law::Config::name`]), UTF-8, NUL-padded |
+//! | 44 | 20 | law name ([`crate::control::law::Config::name`]), UTF-8, NUL-padded |
 //!
 //! Then one record of [`RECORD_LEN`] = 27 bytes per tick:
 //!
@@ -32,11 +32,11 @@
 //! | 4 | 2 | input: bus-voltage code |
 //! | 6 | 4 | input: set point \[m\], `f32` bits |
 //! | 10 | 1 | input: flags; bit 0: [`Config::rearm`] before this tick; other bits 0 |
-//! | 11 | 4 | output: law command `u` \[V\] before saturation ([`crate::law::Output::u_v`]), `f32` bits |
-//! | 15 | 4 | output: voltage applied by the bridge \[V\] ([`crate::bridge::Drive::u_v`]), `f32` bits |
-//! | 19 | 4 | output: desired current \[A\] ([`crate::law::Output::i_d_a`]), `f32` bits |
+//! | 11 | 4 | output: law command `u` \[V\] before saturation ([`crate::control::law::Output::u_v`]), `f32` bits |
+//! | 15 | 4 | output: voltage applied by the bridge \[V\] ([`crate::control::bridge::Drive::u_v`]), `f32` bits |
+//! | 19 | 4 | output: desired current \[A\] ([`crate::control::law::Output::i_d_a`]), `f32` bits |
 //! | 23 | 2 | output: PWM duty code |
-//! | 25 | 1 | output: bridge mode ([`crate::bridge::Mode::code`]: 0 coast, 1 forward, 2 reverse) |
+//! | 25 | 1 | output: bridge mode ([`crate::control::bridge::Mode::code`]: 0 coast, 1 forward, 2 reverse) |
 //! | 26 | 1 | output: latched fault code ([`Fault::code`]), 0 for none |
 //!
 //! Every `NaN` is stored as [`CANONICAL_NAN`]: NaN payloads legitimately differ between
@@ -64,10 +64,10 @@ use core::fmt;
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
-use crate::bridge::HBridge;
+use crate::control::bridge::HBridge;
+use crate::control::sense::Frame;
+use crate::control::supervisor::Fault;
 use crate::control::{Config, Settings, State, Status};
-use crate::sense::Frame;
-use crate::supervisor::Fault;
 
 /// First four bytes of every trace.
 pub const MAGIC: [u8; 4] = *b"EMAT";
@@ -91,21 +91,23 @@ pub struct Case {
     /// `tests/golden/<name>.emat`.
     pub name: &'static str,
     /// Builds the settings.
-    pub settings: fn() -> Result<Settings, crate::config::Error>,
+    pub settings: fn() -> Result<Settings, crate::control::config::Error>,
 }
 
 /// The paper's law on the paper's actuator at 20 kHz from a 24 V bus.
 #[cfg(feature = "paper")]
-fn paper_20khz_24v() -> Result<Settings, crate::config::Error> {
+fn paper_20khz_24v() -> Result<Settings, crate::control::config::Error> {
     Ok(Settings::paper(20_000.0, 24.0))
 }
 
 /// The paper's law with its boundary layer, one sample of measurement delay, otherwise as
 /// [`paper_20khz_24v`].
 #[cfg(feature = "paper")]
-fn boundary_layer_20khz_24v() -> Result<Settings, crate::config::Error> {
+fn boundary_layer_20khz_24v() -> Result<Settings, crate::control::config::Error> {
     Ok(Settings {
-        law: crate::law::Settings::BoundaryLayer(crate::law::paper::Gains::paper()),
+        law: crate::control::law::Settings::BoundaryLayer(
+            crate::control::law::paper::Gains::paper(),
+        ),
         delay_ticks: 1,
         ..Settings::paper(20_000.0, 24.0)
     })
@@ -113,26 +115,26 @@ fn boundary_layer_20khz_24v() -> Result<Settings, crate::config::Error> {
 
 /// The product's default (the practical discrete-time law, the physical convention) at
 /// 20 kHz from a 24 V bus.
-fn practical_20khz_24v() -> Result<Settings, crate::config::Error> {
+fn practical_20khz_24v() -> Result<Settings, crate::control::config::Error> {
     Settings::practical(20_000.0, 24.0)
 }
 
-/// The reference configurations, one per law of [`crate::law::NAMES`], in its order. Golden
-/// traces, the bit-exactness checks and the per-law instruction counts on the Cortex-M4F
-/// all iterate over this list; a new law gets its entry here.
+/// The reference configurations, one per law of [`crate::control::law::NAMES`], in its
+/// order. Golden traces, the bit-exactness checks and the per-law instruction counts on the
+/// Cortex-M4F all iterate over this list; a new law gets its entry here.
 pub const CASES: &[Case] = &[
     #[cfg(feature = "paper")]
     Case {
-        name: crate::law::NAMES[0],
+        name: crate::control::law::NAMES[0],
         settings: paper_20khz_24v,
     },
     #[cfg(feature = "paper")]
     Case {
-        name: crate::law::NAMES[1],
+        name: crate::control::law::NAMES[1],
         settings: boundary_layer_20khz_24v,
     },
     Case {
-        name: crate::law::NAMES[2],
+        name: crate::control::law::NAMES[2],
         settings: practical_20khz_24v,
     },
 ];
@@ -274,7 +276,7 @@ pub struct Output {
     pub i_d: u32,
     /// PWM duty code.
     pub duty: u16,
-    /// Bridge mode ([`crate::bridge::Mode::code`]).
+    /// Bridge mode ([`crate::control::bridge::Mode::code`]).
     pub mode: u8,
     /// Latched fault code, 0 for none.
     pub fault: u8,
@@ -492,7 +494,7 @@ pub enum OpenError {
         current: u64,
     },
     /// The case's settings no longer build.
-    Build(crate::config::Error),
+    Build(crate::control::config::Error),
     /// The law's name differs from the one in the trace.
     Law,
 }
@@ -630,7 +632,7 @@ const fn len_u16(n: usize) -> u16 {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::bridge::{HBridge, NullPin, NullPwm, BOARD_MAX_DUTY};
+    use crate::control::bridge::{HBridge, NullPin, NullPwm, BOARD_MAX_DUTY};
     use std::vec::Vec;
 
     /// A short trace of `case` with a position ramp (re-armed after every fault the

@@ -20,8 +20,8 @@
 //! (and the position) keep an error that grows with `phi`.
 //!
 //! ```
-//! use ema::law::{self, boundary, paper, Law};
-//! use ema::model::Plant;
+//! use ema::control::law::{self, boundary, paper, Law};
+//! use ema::control::model::Plant;
 //!
 //! let ts = 1.0 / 20_000.0;
 //! let plant = Plant::paper();
@@ -40,9 +40,9 @@
 
 use super::paper::{self, State};
 use super::{Input, Law, Output};
-use crate::config::{self, Error};
-use crate::math;
-use crate::model::Plant;
+use crate::control::config::{self, Error};
+use crate::control::math;
+use crate::control::model::Plant;
 
 /// The boundary-layer law, validated.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -105,7 +105,7 @@ impl Law for Config {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::law::Reference;
+    use crate::control::law::Reference;
 
     const TS: f32 = 1.0 / 20_000.0;
 

@@ -3,8 +3,8 @@
 //!
 //! ## Outer loop: backstepping with the nominal model and a disturbance estimate
 //!
-//! With the shaped reference `(r, r', r'')` ([`crate::shaping`]), the estimate
-//! `(x, v, d)` from the extended-state observer ([`crate::observer`]):
+//! With the shaped reference `(r, r', r'')` ([`crate::control::shaping`]), the estimate
+//! `(x, v, d)` from the extended-state observer ([`crate::control::observer`]):
 //!
 //! ```text
 //! z1 = x - r                       z2 = v - r' + alpha1 z1
@@ -14,14 +14,14 @@
 //! ```
 //!
 //! `m`, `K`, `lambda` and `mu` are the *robust design model*
-//! ([`crate::model::Plant::robust_dynamics`]): every uncertain parameter at the bound that
-//! makes the actuator slowest to follow a force command (`mu = mu_lo`, the heaviest mass,
-//! the softest spring, the most friction). This is the paper's use of `mu_lo` in `x3d`,
-//! extended to every parameter, and it is what keeps the overshoot small over the whole
-//! uncertainty set: a plant stronger than the model leads the reference a little and is
-//! pulled back; a plant weaker than the model would lag during the move while `d` builds
-//! up, and `d` would then overshoot as the move ends. The observer must use the same model
-//! ([`crate::observer::Model::Robust`]).
+//! ([`crate::control::model::Plant::robust_dynamics`]): every uncertain parameter at the
+//! bound that makes the actuator slowest to follow a force command (`mu = mu_lo`, the
+//! heaviest mass, the softest spring, the most friction). This is the paper's use of
+//! `mu_lo` in `x3d`, extended to every parameter, and it is what keeps the overshoot small
+//! over the whole uncertainty set: a plant stronger than the model leads the reference a
+//! little and is pulled back; a plant weaker than the model would lag during the move while
+//! `d` builds up, and `d` would then overshoot as the move ends. The observer must use the
+//! same model ([`crate::control::observer::Model::Robust`]).
 //!
 //! (1) is backstepping for `x'' = a`: with `V = (z1^2 + z2^2)/2` it gives
 //! `V' = -alpha1 z1^2 - alpha2 z2^2` when the model is exact, i.e. Theorem 1's `Q` becomes
@@ -68,8 +68,8 @@
 //! measured current) cannot see it.
 //!
 //! ```
-//! use ema::law::{self, practical, Law};
-//! use ema::model::Plant;
+//! use ema::control::law::{self, practical, Law};
+//! use ema::control::model::Plant;
 //!
 //! let plant = Plant::paper();
 //! let cfg = practical::Gains::new(130.0, 12.0).build(&plant, 1.0 / 20_000.0, 0).unwrap();
@@ -86,9 +86,9 @@
 //! ```
 
 use super::{Input, Law, Output};
-use crate::config::{self, Error};
-use crate::math;
-use crate::model::{Convention, Dynamics, Nominal, Plant};
+use crate::control::config::{self, Error};
+use crate::control::math;
+use crate::control::model::{Convention, Dynamics, Nominal, Plant};
 
 /// Reaching factor of the current loop: its pole sits at `1 - 0.7 L_lo / L` for a coil
 /// of inductance `L`, in `[0.3, 1)` over the bounds (no oscillation, a margin for the
@@ -267,7 +267,7 @@ impl Law for Config {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::law::Reference;
+    use crate::control::law::Reference;
 
     const TS: f32 = 1.0 / 20_000.0;
 

@@ -52,7 +52,7 @@
 //! | position window | the stroke with 10 % on either side |
 //! | backstepping `alpha1 = alpha2` | tuned ([`Tuning`]); by default [`DEFAULT_ALPHA_PER_W`] times the mechanical frequency [`TimeScales::mechanical_rad_s`] |
 //! | observer bandwidth | tuned; by default [`DEFAULT_OBSERVER_PER_ALPHA`] times `alpha` |
-//! | disturbance model | tuned: constant, or following the magnet's force above [`FORCE_SCALED_SHARE`] of the current limit (see [`crate::observer`]); by default following |
+//! | disturbance model | tuned: constant, or following the magnet's force above [`FORCE_SCALED_SHARE`] of the current limit (see [`crate::control::observer`]); by default following |
 //! | shaping margin | tuned; by default [`DEFAULT_MARGIN`] |
 //! | shaping acceleration cap | the force authority at the rated current ([`TimeScales::authority_mps2`]) |
 //! | shortest move | `2.6 / alpha`: the error poles are `-alpha +- j`, and a step of the reference settles to 2 % in about `4 / alpha`; a shorter move would only be rounded off by the loop |
@@ -60,10 +60,10 @@
 //! | residual noise, jump, open | [`NOISE_ALLOWANCE_CODES`], [`JUMP_ALLOWANCES`] and [`OPEN_ALLOWANCES`] allowances in current codes: the current channel's own resolution and noise ([`residual_detector`]) |
 //! | residual window, confirmation | half the detection deadline ([`DEADLINE_S`]) in interrupt periods; [`RESIDUAL_CONFIRM_TICKS`] ticks, from the converter's noise |
 //! | tracking error | 1/8 of the stroke, for a quarter of the settling target |
-//! | a move's settling target | 1.5 times the fastest move the limits allow, the coil's current rise included, at least the paper's 0.2 s ([`crate::shaping::Config::settling_target_s`]) |
+//! | a move's settling target | 1.5 times the fastest move the limits allow, the coil's current rise included, at least the paper's 0.2 s ([`crate::control::shaping::Config::settling_target_s`]) |
 //!
 //! ```
-//! use ema::actuator::Actuator;
+//! use ema::control::actuator::Actuator;
 //!
 //! let product = Actuator::PRODUCT;
 //! let settings = product.settings().unwrap();
@@ -79,16 +79,18 @@
 //! assert_eq!(e.param, "coil.peak_current_a");
 //! ```
 
-use crate::config::{self, Error, Reason};
+use crate::control::config::{self, Error, Reason};
+use crate::control::law;
+use crate::control::math;
+use crate::control::model::{self, Bounds, Convention, Fringing, Plant, Tolerance, MU0_H_PER_M};
+use crate::control::observer;
+use crate::control::sense::{
+    Calibration, Channel, ADC_MAX_CODE, NOISE_RMS_CODES, RAIL_MARGIN_CODES,
+};
+use crate::control::shaping;
+use crate::control::supervisor::monitor::{Monitors, Residual, Stuck, Thermal, Tracking};
+use crate::control::supervisor::{Limits, DEADLINE_S};
 use crate::control::Settings;
-use crate::law;
-use crate::math;
-use crate::model::{self, Bounds, Convention, Fringing, Plant, Tolerance, MU0_H_PER_M};
-use crate::observer;
-use crate::sense::{Calibration, Channel, ADC_MAX_CODE, NOISE_RMS_CODES, RAIL_MARGIN_CODES};
-use crate::shaping;
-use crate::supervisor::monitor::{Monitors, Residual, Stuck, Thermal, Tracking};
-use crate::supervisor::{Limits, DEADLINE_S};
 
 /// The armature, its spring and its stroke.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -227,7 +229,8 @@ pub struct Tuning {
     /// Reference-shaping margin, in (0, 1] \[-\].
     pub margin: f32,
     /// The observer's disturbance follows the magnet's force above a tenth of the current
-    /// limit ([`FORCE_SCALED_SHARE`], see [`crate::observer`]); otherwise it is constant.
+    /// limit ([`FORCE_SCALED_SHARE`], see [`crate::control::observer`]); otherwise it is
+    /// constant.
     pub disturbance_follows_force: bool,
 }
 
@@ -296,7 +299,7 @@ pub const DEFAULT_MARGIN: f32 = 0.7;
 /// law's limit plus the ripple and the current loop's settling \[-\].
 pub const PEAK_OVER_RATED: f32 = 1.05;
 /// Share of the current limit above which the observer's disturbance follows the magnet
-/// force (see [`crate::observer`]) \[-\].
+/// force (see [`crate::control::observer`]) \[-\].
 pub const FORCE_SCALED_SHARE: f32 = 0.1;
 /// Ripple allowance: the targets allow 2 % of the rated current peak to peak at the
 /// samples, so the law keeps its desired current that far below the rating \[-\].
@@ -673,7 +676,7 @@ impl Actuator {
     /// The largest voltage the bridge puts across the coil from the supply at the board's
     /// rate \[V\].
     fn drive_v(&self) -> f32 {
-        self.board.supply_v * crate::bridge::max_modulation(self.board.rate_hz)
+        self.board.supply_v * crate::control::bridge::max_modulation(self.board.rate_hz)
     }
 
     /// Time the coil's current takes from zero to `current_a` at full drive through its
@@ -927,8 +930,8 @@ pub struct Consistency {
     /// weakest magnet the surface bounds allow \[-\].
     pub hold_ratio: f32,
     /// The largest voltage the bridge applies from the supply (at the rate's
-    /// [`crate::bridge::max_modulation`]) over the voltage the coil drops at the rated
-    /// current with its resistance at the hot end of its tolerance \[-\].
+    /// [`crate::control::bridge::max_modulation`]) over the voltage the coil drops at the
+    /// rated current with its resistance at the hot end of its tolerance \[-\].
     pub drive_ratio: f32,
     /// The largest flux density in an airgap where the nominal magnet holds the armature
     /// against the stiffest spring, over the stroke \[T\].
@@ -979,11 +982,11 @@ pub const NOISE_ALLOWANCE_CODES: f32 = NOISE_SIGMAS * core::f32::consts::SQRT_2 
 pub const STUCK_TRAVEL_BANDS: f32 = 1.0 + core::f32::consts::SQRT_2;
 
 /// The stuck-position detector for a position channel (see
-/// [`crate::supervisor::monitor::Stuck`]): a band of [`NOISE_ALLOWANCE_CODES`] position
-/// codes, so that a frozen reading stays in it, and [`STUCK_TRAVEL_BANDS`] bands of
-/// reference travel, so that a healthy one leaves it first. Both follow the sensor's
-/// resolution and noise only: the detection time is that travel over the armature's
-/// speed when the sensor freezes.
+/// [`crate::control::supervisor::monitor::Stuck`]): a band of [`NOISE_ALLOWANCE_CODES`]
+/// position codes, so that a frozen reading stays in it, and [`STUCK_TRAVEL_BANDS`] bands
+/// of reference travel, so that a healthy one leaves it first. Both follow the sensor's
+/// resolution and noise only: the detection time is that travel over the armature's speed
+/// when the sensor freezes.
 #[must_use]
 pub fn stuck_detector(position: &Channel) -> Stuck {
     Stuck {
@@ -1009,7 +1012,7 @@ pub const OPEN_ALLOWANCES: f32 = 3.0;
 pub const GROSS: f32 = 2.0;
 
 /// The electrical residual for a current channel at an interrupt rate \[Hz\], in the
-/// channel's own codes (see [`crate::supervisor::monitor`]): the noise allowance
+/// channel's own codes (see [`crate::control::supervisor::monitor`]): the noise allowance
 /// [`NOISE_ALLOWANCE_CODES`], a [`RESIDUAL_MARGIN`], [`RESIDUAL_CONFIRM_TICKS`] ticks of
 /// evidence, a jump of [`JUMP_ALLOWANCES`] and an open coil below [`OPEN_ALLOWANCES`]
 /// allowances, a [`GROSS`] factor, and a corner bank as long as half the detection
@@ -1196,7 +1199,7 @@ mod tests {
         let a = Actuator::PRODUCT;
         let rise = a.settings().unwrap().shaping.unwrap().current_rise_s;
         let tau = a.time_scales().unwrap().coil_closed_s;
-        let u = a.board.supply_v * crate::bridge::max_modulation(a.board.rate_hz);
+        let u = a.board.supply_v * crate::control::bridge::max_modulation(a.board.rate_hz);
         let drop = a.coil.resistance_ohm * a.current_limit_a();
         let expect = tau * libm::logf(u / (u - drop));
         assert!((rise - expect).abs() < 1e-9, "{rise} vs {expect}");

@@ -1,11 +1,11 @@
 //! The board's parameters: the actuator file it was built for, and the set-point source.
 //! Read and changed by name over the link; validated exactly as a build validates an
-//! actuator file; stored in flash by [`crate::store`].
+//! actuator file; stored in flash by [`crate::device::store`].
 //!
 //! Names are the actuator file's dotted field names (`mechanics.mass_kg`,
 //! `coil.rated_current_a`, `board.supply_v`, `tuning.alpha_per_s`, ...), `setpoint.*`
-//! for the analog set point ([`crate::analog`]) and `link.*` for the host's timeout
-//! ([`crate::liveness`]). A change is validated with everything
+//! for the analog set point ([`crate::device::analog`]) and `link.*` for the host's timeout
+//! ([`crate::device::liveness`]). A change is validated with everything
 //! else: the whole set must derive settings ([`Actuator::settings`]) that build, on this
 //! board ([`Board`]); a refusal names the field, its value and why, as the build does.
 //!
@@ -14,11 +14,11 @@
 //! the magnetic circuit has).
 //!
 //! ```
-//! use ema::params::{Board, Params};
-//! use ema::protocol::Value;
+//! use ema::device::params::{Board, Params};
+//! use ema::device::protocol::Value;
 //!
 //! let board = Board { rate_hz: 20_000.0, current_zero_code: None };
-//! let mut p = Params::new(ema::actuator::Actuator::PRODUCT);
+//! let mut p = Params::new(ema::control::actuator::Actuator::PRODUCT);
 //! p.set("board.supply_v", Value::Number(12.0)).unwrap();
 //! assert_eq!(p.get("board.supply_v"), Ok(Value::Number(12.0)));
 //! assert!(p.build(&board).is_ok());
@@ -31,13 +31,13 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::actuator::{Actuator, Magnetics};
-use crate::analog;
-use crate::config::{self, Error};
+use crate::control::actuator::{Actuator, Magnetics};
+use crate::control::config::{self, Error};
 use crate::control::Settings;
+use crate::device::analog;
+use crate::device::liveness;
+use crate::device::protocol::Value;
 use crate::device::Install;
-use crate::liveness;
-use crate::protocol::Value;
 
 /// Every parameter of the board.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -382,7 +382,7 @@ impl Params {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::actuator::Actuator;
+    use crate::control::actuator::Actuator;
 
     const BOARD: Board = Board {
         rate_hz: 20_000.0,

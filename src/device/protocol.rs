@@ -33,7 +33,7 @@
 //! came from).
 //!
 //! ```
-//! use ema::protocol::{self, Command, Request, Framer, MAX_FRAME};
+//! use ema::device::protocol::{self, Command, Request, Framer, MAX_FRAME};
 //!
 //! let mut frame = [0u8; MAX_FRAME];
 //! let n = protocol::encode(&Request { seq: 7, command: Command::Arm }, &mut frame).unwrap();
@@ -68,7 +68,7 @@ use core::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use crate::config;
+use crate::control::config;
 
 /// The link's speed on a serial line \[baud\]: the firmware's UART runs at it and the host
 /// tool opens its port at it (a pseudo-terminal, the virtual board's, ignores it). 8 data
@@ -92,7 +92,7 @@ pub const CHUNK_SAMPLES: usize = 6;
 /// Values per telemetry frame (one per selected [`Signal`]).
 pub const MAX_SIGNALS: usize = 8;
 /// Fault codes the status counts (codes `1..=FAULT_SLOTS`).
-pub const FAULT_SLOTS: usize = crate::supervisor::FAULT_COUNT;
+pub const FAULT_SLOTS: usize = crate::control::supervisor::FAULT_COUNT;
 
 /// A host's request.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -110,8 +110,8 @@ pub enum Command<'a> {
     /// The board's state ([`Reply::Status`]).
     Status,
     /// Nothing but "the host is alive" ([`Reply::Done`]): every request counts against
-    /// the link's timeout ([`crate::liveness`]); a host with nothing else to ask sends
-    /// this.
+    /// the link's timeout ([`crate::device::liveness`]); a host with nothing else to ask
+    /// sends this.
     Heartbeat,
     /// Closed loop, holding the present position. Refused while a fault is latched, a
     /// sensor reads implausible, the bus is outside its window or (4-20 mA set point) the
@@ -172,9 +172,10 @@ pub enum Command<'a> {
         /// First sample.
         offset: u16,
     },
-    /// Measures the coil's resistance with the loop open (see [`crate::commission`]):
-    /// disarmed only, with nothing latched and the sensors and bus ready. The board is
-    /// [`Mode::Commissioning`] until it ends; any fault or order ends it.
+    /// Measures the coil's resistance with the loop open (see
+    /// [`crate::device::commission`]): disarmed only, with nothing latched and the sensors
+    /// and bus ready. The board is [`Mode::Commissioning`] until it ends; any fault or
+    /// order ends it.
     Commission,
     /// The last commissioning's outcome ([`Reply::Commissioned`]).
     Commissioned,
@@ -211,7 +212,8 @@ pub enum Value {
     Number(f32),
     /// Yes or no.
     Flag(bool),
-    /// One of a parameter's named choices, by index ([`crate::params::Kind::Choice`]).
+    /// One of a parameter's named choices, by index
+    /// ([`crate::device::params::Kind::Choice`]).
     Choice(u8),
 }
 
@@ -278,9 +280,9 @@ pub enum Commissioned {
     /// In progress.
     Running,
     /// Finished: the coil's resistance and the position sensor's end stops.
-    Done(crate::commission::Report),
+    Done(crate::device::commission::Report),
     /// Stopped without a result.
-    Aborted(crate::commission::Abort),
+    Aborted(crate::device::commission::Abort),
 }
 
 /// Why a request was not carried out. Nothing changed on the board.
@@ -324,7 +326,7 @@ pub enum Refusal<'a> {
         name: &'a str,
     },
     /// A value refused by validation: the field, its value and why, exactly as a build
-    /// refuses an actuator file ([`crate::config::Error`]).
+    /// refuses an actuator file ([`crate::control::config::Error`]).
     Invalid(Invalid<'a>),
     /// The set point comes from the analog input (`setpoint.source`).
     AnalogSetpoint,
@@ -337,7 +339,7 @@ pub enum Refusal<'a> {
     Load(LoadError<'a>),
 }
 
-/// A value refused by validation (the wire form of [`crate::config::Error`]).
+/// A value refused by validation (the wire form of [`crate::control::config::Error`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Invalid<'a> {
     /// Dotted name of the field.
@@ -349,7 +351,7 @@ pub struct Invalid<'a> {
     pub reason: Reason<'a>,
 }
 
-/// Why a value was refused: [`crate::config::Reason`] with borrowed names.
+/// Why a value was refused: [`crate::control::config::Reason`] with borrowed names.
 pub type Reason<'a> = config::Reason<&'a str>;
 
 impl From<config::Error> for Invalid<'static> {
@@ -363,7 +365,7 @@ impl From<config::Error> for Invalid<'static> {
 }
 
 impl fmt::Display for Invalid<'_> {
-    /// The same text as [`crate::config::Error`]'s.
+    /// The same text as [`crate::control::config::Error`]'s.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{} = {}: {}", self.param, self.value, self.reason)
     }
@@ -1099,7 +1101,7 @@ mod tests {
 
     #[test]
     fn refusals_read_as_the_build_writes_them() {
-        use crate::config::{Error, Reason as R};
+        use crate::control::config::{Error, Reason as R};
         let cases = [
             R::NotFinite,
             R::NotPositive,

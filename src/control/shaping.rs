@@ -32,10 +32,10 @@
 //! `margin < 1` leaves room for the feedback and for the plant uncertainty (mass, spring,
 //! friction, surfaces).
 
-use crate::config::{self, Error};
-use crate::law::Reference;
-use crate::math;
-use crate::model::{Envelope, Plant};
+use crate::control::config::{self, Error};
+use crate::control::law::Reference;
+use crate::control::math;
+use crate::control::model::{Envelope, Plant};
 
 /// `10 / sqrt(3)`: peak acceleration of a unit rest-to-rest quintic in unit time.
 const QUINTIC_PEAK_ACCEL: f32 = 5.773_503;

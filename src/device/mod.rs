@@ -4,6 +4,14 @@
 //! flash, the reset) stays in the firmware; `hil-sim` gives the same two halves a
 //! simulated plant, a pseudo-terminal and a simulated flash.
 //!
+//! This module's root is the application (its two halves, the queues between them, the
+//! start-up's [`boot`]); its submodules are what only the application uses: the link's
+//! messages and frames ([`protocol`]), the parameters ([`params`]) and their store
+//! ([`store`]), the analog set point ([`analog`]), the commissioning routine
+//! ([`commission`]), the checks around each tick ([`guard`]) and the link's and main loop's
+//! liveness ([`liveness`]). It runs the control layer ([`crate::control`]), which does not
+//! know it.
+//!
 //! **Where it runs.** The firmware's control interrupt runs [`Controller::tick`] and its
 //! main loop the [`Dispatcher`], over USART2 and the chip's flash; `hil-sim`'s virtual
 //! board runs the same two halves (the host tool is tested against it), and
@@ -42,7 +50,7 @@
 //! * **Moving**: armed, a move in progress (the reference shaping's).
 //! * **Commissioning** (entered from Disarmed by [`Command::Commission`], nothing
 //!   latched, sensors and bus ready): the loop open, the bridge driven by the actuator's
-//!   identification ([`crate::commission`]); it returns to Disarmed when the result is in,
+//!   identification ([`commission`]); it returns to Disarmed when the result is in,
 //!   when any order other than a status, stream or capture arrives (the bridge coasts at
 //!   once), or to Fault when a fault latches (every tick still converts and checks the
 //!   codes and the limits).
@@ -59,26 +67,33 @@
 //! the operating state, and when due, one telemetry sample and one capture sample (a copy
 //! of eight values). `tests/qemu_device.rs` counts the instructions on the Cortex-M4F.
 
+pub mod analog;
+pub mod commission;
+pub mod guard;
+pub mod liveness;
+pub mod params;
+pub mod protocol;
+pub mod store;
+
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use crate::analog::{self, Source as SetpointSource};
-use crate::bridge::{HBridge, Mode as BridgeMode};
-use crate::commission;
+use crate::control::bridge::{HBridge, Mode as BridgeMode};
+use crate::control::math;
+use crate::control::sense::{Frame, Measurement};
+use crate::control::supervisor::{Fault, FAULT_COUNT};
 use crate::control::{self, Status as TickStatus};
-use crate::guard::{self, End, Start};
-use crate::liveness::{self, Pulse};
-use crate::math;
-use crate::params::{Board, Params, Refused};
-use crate::protocol::{
-    self, Build, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid,
-    LoadError, Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status,
-    StoreError, Telemetry, Trigger, MAX_FRAME,
+use analog::Source as SetpointSource;
+use guard::{End, Start};
+use liveness::Pulse;
+use params::{Board, Params, Refused};
+use protocol::{
+    Build, CaptureState, Chunk, Command, Commissioned, FrameError, Framer, Invalid, LoadError,
+    Message, Mode, Refusal, Reply, Request, Sample, Signal, Source, Started, Status, StoreError,
+    Telemetry, Trigger, MAX_FRAME,
 };
-use crate::sense::{Frame, Measurement};
-use crate::store::Store;
-use crate::supervisor::{Fault, FAULT_COUNT};
+use store::Store;
 
 /// Samples the firmware's capture buffer holds (at 20 kHz with a decimation of 20: 0.256 s).
 pub const CAPTURE_CAPACITY: usize = 256;
@@ -1102,7 +1117,7 @@ pub fn boot<F: embedded_storage::nor_flash::NorFlash>(
     defaults: &Params,
     board: &Board,
     save: Option<&Params>,
-) -> Result<Boot, crate::config::Error> {
+) -> Result<Boot, crate::control::config::Error> {
     let saved = save.map(|p| store.save(p));
     let stored = store.load().and_then(|p| match p.build(board) {
         Ok(install) => Ok((p, install)),
@@ -1410,8 +1425,12 @@ impl Dispatcher {
             .map_err(|e| Refusal::Invalid(Invalid::from(e)))
     }
 
-    fn invalid(param: &'static str, value: f32, reason: crate::config::Reason) -> Refusal<'static> {
-        Refusal::Invalid(Invalid::from(crate::config::Error {
+    fn invalid(
+        param: &'static str,
+        value: f32,
+        reason: crate::control::config::Reason,
+    ) -> Refusal<'static> {
+        Refusal::Invalid(Invalid::from(crate::control::config::Error {
             param,
             value,
             reason,
@@ -1426,7 +1445,7 @@ impl Dispatcher {
         ends: &mut MainEnds<'_>,
         storage: &mut dyn Storage,
     ) {
-        use crate::config::Reason;
+        use crate::control::config::Reason;
         let then = Then::Reply;
         match command {
             Command::Status => self.order(seq, Order::Status, then, ends),
@@ -1445,7 +1464,7 @@ impl Dispatcher {
                 cycles,
             } => {
                 let rated = self.params.actuator.coil.rated_current_a;
-                let checked = crate::config::within(
+                let checked = crate::control::config::within(
                     "probe.amplitude_a",
                     amplitude_a,
                     0.0,
@@ -1464,11 +1483,11 @@ impl Dispatcher {
             Command::Move { position_m, time_s } => {
                 let stroke = self.params.actuator.mechanics.stroke_m;
                 let refusal = if let Err(e) =
-                    crate::config::within("move.position_m", position_m, 0.0, stroke)
+                    crate::control::config::within("move.position_m", position_m, 0.0, stroke)
                 {
                     Some(Refusal::Invalid(Invalid::from(e)))
-                } else if let Some(Err(e)) =
-                    time_s.map(|t| crate::config::within("move.time_s", t, 0.0, MAX_MOVE_S))
+                } else if let Some(Err(e)) = time_s
+                    .map(|t| crate::control::config::within("move.time_s", t, 0.0, MAX_MOVE_S))
                 {
                     Some(Refusal::Invalid(Invalid::from(e)))
                 } else if self.params.setpoint.source != SetpointSource::Link {

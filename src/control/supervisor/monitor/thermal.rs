@@ -1,8 +1,8 @@
 //! I^2 t protection of the coil.
 
 use super::{Config, Inputs, State};
-use crate::math;
-use crate::supervisor::Fault;
+use crate::control::math;
+use crate::control::supervisor::Fault;
 
 /// I^2 t protection of the coil.
 #[derive(Clone, Copy, Debug, PartialEq)]

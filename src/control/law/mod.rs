@@ -111,10 +111,10 @@ impl Settings {
     /// The first invalid parameter, by name.
     pub fn build(
         &self,
-        plant: &crate::model::Plant,
+        plant: &crate::control::model::Plant,
         ts_s: f32,
         delay_ticks: u8,
-    ) -> Result<Config, crate::config::Error> {
+    ) -> Result<Config, crate::control::config::Error> {
         Ok(match self {
             #[cfg(feature = "paper")]
             Settings::Paper(gains) => Config::Paper(gains.build(plant, ts_s)?),

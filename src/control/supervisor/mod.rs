@@ -8,15 +8,15 @@
 
 use core::fmt;
 
-use crate::config::{self, Error};
-use crate::sense::Measurement;
+use crate::control::config::{self, Error};
+use crate::control::sense::Measurement;
 
 pub mod monitor;
 pub use monitor::Monitors;
 
 /// The product's requirement: every fault is named within this time of becoming
 /// observable \[s\]. The fault detectors' windows are sized from it
-/// ([`crate::actuator::residual_detector`]).
+/// ([`crate::control::actuator::residual_detector`]).
 pub const DEADLINE_S: f32 = 1e-3;
 
 /// Fault codes. The numeric value is stable (logged, stored, compared in golden traces).
@@ -74,10 +74,10 @@ pub enum Fault {
     /// shorted wire (only with the analog set point, `setpoint.source = current_4_20ma`).
     AnalogWireBreak = 21,
     /// The host fell silent for longer than `link.timeout_s` while the board drove the
-    /// coil for it ([`crate::liveness`]).
+    /// coil for it ([`crate::device::liveness`]).
     LinkTimeout = 22,
     /// The main loop stopped checking in: the link is not served and the watchdogs are no
-    /// longer fed ([`crate::liveness`]).
+    /// longer fed ([`crate::device::liveness`]).
     MainLoopStalled = 23,
 }
 

@@ -21,7 +21,7 @@
 //! reads as the open end stop, where the spring holds the armature anyway.
 //!
 //! ```
-//! use ema::analog::{Settings, Source, CURRENT_A_PER_CODE};
+//! use ema::device::analog::{Settings, Source, CURRENT_A_PER_CODE};
 //! let cfg = Settings { source: Source::Current, filter_s: 0.0 }.build(4e-3, 50e-6).unwrap();
 //! let mut st = Default::default();
 //! // 12 mA: mid-stroke.
@@ -37,10 +37,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{self, Error};
-use crate::math;
-use crate::sense::ADC_MAX_CODE;
-use crate::supervisor::Fault;
+use crate::control::config::{self, Error};
+use crate::control::math;
+use crate::control::sense::ADC_MAX_CODE;
+use crate::control::supervisor::Fault;
 
 /// Codes of the 12-bit converter.
 const FULL_SCALE_CODES: f32 = 4096.0;
@@ -73,7 +73,7 @@ pub const FILTER_MAX_S: f32 = 1.0;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub enum Source {
-    /// From the link ([`crate::protocol::Command::Move`]).
+    /// From the link ([`crate::device::protocol::Command::Move`]).
     #[default]
     Link,
     /// From a 0-10 V input.

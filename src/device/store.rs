@@ -16,15 +16,15 @@
 //! kept here, and what a later format added takes its default); a set of a format this
 //! firmware does not know (a later one) is refused by version; a set that decodes is
 //! still validated as a build validates an actuator file before it is used
-//! ([`crate::params::Params::build`], by the caller). A refused set stays in the flash
-//! until a save replaces it, and the board runs its built-in defaults and says why
+//! ([`crate::device::params::Params::build`], by the caller). A refused set stays in the
+//! flash until a save replaces it, and the board runs its built-in defaults and says why
 //! ([`LoadError`]); the host tool backs a set up and restores it across a firmware that
 //! cannot read it (`bench backup`, `bench restore`).
 //!
 //! | format | layout | read as |
 //! |---|---|---|
 //! | 1 | the actuator, the set point's source and filter | format 2 with the link's default timeout |
-//! | 2 ([`FORMAT`]) | format 1, then the link's timeout and what it does on expiry ([`crate::liveness::Settings`]) | itself |
+//! | 2 ([`FORMAT`]) | format 1, then the link's timeout and what it does on expiry ([`crate::device::liveness::Settings`]) | itself |
 //!
 //! A change of [`Params`]' encoding without a new format fails a test that pins the
 //! defaults' encoded bytes to the format number.
@@ -34,10 +34,10 @@
 //! are ready at the first poll, and [`block_on`] runs them without an executor.
 //!
 //! ```
-//! use ema::actuator::Actuator;
-//! use ema::params::Params;
-//! use ema::protocol::LoadError;
-//! use ema::store::{RamFlash, Store};
+//! use ema::control::actuator::Actuator;
+//! use ema::device::params::Params;
+//! use ema::device::protocol::LoadError;
+//! use ema::device::store::{RamFlash, Store};
 //!
 //! let mut store = Store::new(RamFlash::<4096, 2>::new(), 0..8192).unwrap();
 //! assert_eq!(store.load(), Err(LoadError::Empty));
@@ -58,8 +58,8 @@ use embedded_storage::nor_flash::{
 use sequential_storage::cache::{Cache, Uncached};
 use sequential_storage::map::{MapConfig, MapStorage};
 
-use crate::params::Params;
-use crate::protocol::{LoadError, StoreError, CRC};
+use crate::device::params::Params;
+use crate::device::protocol::{LoadError, StoreError, CRC};
 
 /// Version of the stored record this firmware writes (see the module documentation for
 /// the earlier ones it reads).
@@ -68,8 +68,8 @@ pub const FORMAT: u16 = 2;
 /// Format 1's layout: [`Params`] before the link's timeout.
 #[derive(serde::Deserialize)]
 struct Format1 {
-    actuator: crate::actuator::Actuator,
-    setpoint: crate::analog::Settings,
+    actuator: crate::control::actuator::Actuator,
+    setpoint: crate::device::analog::Settings,
 }
 /// The map key of the parameter set.
 pub const KEY: u8 = 1;
@@ -184,7 +184,7 @@ pub fn decode(record: &[u8]) -> Result<Params, LoadError<'static>> {
             Ok((old, [])) => Ok(Params {
                 actuator: old.actuator,
                 setpoint: old.setpoint,
-                link: crate::liveness::Settings::default(),
+                link: crate::device::liveness::Settings::default(),
             }),
             _ => Err(LoadError::Decode),
         },
@@ -407,7 +407,7 @@ impl<F: NorFlash> NorFlash for ReadOnly<F> {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::actuator::Actuator;
+    use crate::control::actuator::Actuator;
 
     type Flash = RamFlash<1024, 2>;
 
@@ -454,12 +454,12 @@ mod tests {
         #[derive(serde::Serialize)]
         struct Written {
             actuator: Actuator,
-            setpoint: crate::analog::Settings,
+            setpoint: crate::device::analog::Settings,
         }
         let mut a = Actuator::PRODUCT;
         a.coil.turns = 72.0;
-        let setpoint = crate::analog::Settings {
-            source: crate::analog::Source::Current,
+        let setpoint = crate::device::analog::Settings {
+            source: crate::device::analog::Source::Current,
             filter_s: 0.01,
         };
         let mut body = [0u8; MAX_RECORD];
@@ -473,7 +473,7 @@ mod tests {
         .unwrap();
         let p = decode(&sealed(1, body)).unwrap();
         assert_eq!((p.actuator, p.setpoint), (a, setpoint));
-        assert_eq!(p.link, crate::liveness::Settings::default());
+        assert_eq!(p.link, crate::device::liveness::Settings::default());
         // Format 1's bytes under format 2's number do not decode (they are shorter).
         assert_eq!(decode(&sealed(FORMAT, body)), Err(LoadError::Decode));
     }

@@ -90,7 +90,8 @@ pub const BOARD_PWM_ARR: u16 = 4200;
 
 /// PWM full scale the bridge sees on the reference board at 20 kHz: the HAL's
 /// `max_duty_cycle` is `ARR + 1` (a compare value above ARR keeps the output on for the
-/// whole period). The golden traces ([`crate::trace`]) are recorded at this resolution.
+/// whole period). The golden traces ([`crate::control::trace`]) are recorded at this
+/// resolution.
 // 4201 fits u16 (checked by the compiler: a const overflow is an error).
 #[allow(clippy::arithmetic_side_effects)]
 pub const BOARD_MAX_DUTY: u16 = BOARD_PWM_ARR + 1;

@@ -24,11 +24,11 @@
 //! differences wrap, so a gap is right as long as it is shorter than the counter's period.
 //!
 //! ```
-//! use ema::bridge::{HBridge, Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
+//! use ema::control::bridge::{HBridge, Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
 //! use ema::control::{Config, Settings, State};
-//! use ema::guard::{self, End, Start};
-//! use ema::sense::Measurement;
-//! use ema::supervisor::Fault;
+//! use ema::device::guard::{self, End, Start};
+//! use ema::control::sense::Measurement;
+//! use ema::control::supervisor::Fault;
 //!
 //! type Bridge = HBridge<NullPwm, NullPin>;
 //! /// A tick at counter reading `now`, through the guard.
@@ -56,9 +56,9 @@
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
-use crate::bridge::{Drive, HBridge};
+use crate::control::bridge::{Drive, HBridge};
+use crate::control::supervisor::Fault;
 use crate::control::{self, Status};
-use crate::supervisor::Fault;
 
 /// What the interrupt knows as it starts, before the tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -193,7 +193,7 @@ pub const WATCHDOG_QUIET_PERIODS: u32 = 3;
 /// `counts` counts after a feed, the reset one count later.
 ///
 /// ```
-/// use ema::guard::Watchdog;
+/// use ema::device::guard::Watchdog;
 /// // 42 MHz APB1, quiet for 3 periods of 20 kHz: 3 counts of 97.5 us.
 /// let w = Watchdog::at_least(42_000_000, 150_000);
 /// assert_eq!(w.reload(), 0x43);
@@ -299,9 +299,9 @@ impl Watchdog {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bridge::{Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
+    use crate::control::bridge::{Mode, NullPin, NullPwm, BOARD_MAX_DUTY};
+    use crate::control::sense::Measurement;
     use crate::control::Settings;
-    use crate::sense::Measurement;
 
     const PERIOD: u32 = 8400;
 
@@ -318,7 +318,7 @@ mod tests {
             // A fixed measurement: the detectors that need history (a coil that does not
             // answer the voltage is open) stay off, the tick keeps driving.
             let mut settings = Settings::practical(20_000.0, 24.0).unwrap();
-            settings.monitors = crate::supervisor::Monitors::default();
+            settings.monitors = crate::control::supervisor::Monitors::default();
             let cfg = settings.build().unwrap();
             Self {
                 guard: Config::for_period(PERIOD),

@@ -94,8 +94,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::math;
-use crate::sense::Measurement;
+use crate::control::math;
+use crate::control::sense::Measurement;
 
 /// Share of the rated current the first step aims at (at the file's resistance).
 pub const LOW_SHARE: f32 = 0.3;
@@ -237,9 +237,9 @@ impl Plan {
     /// The actuator's time scales do not derive, or the plan's inputs are not positive
     /// (named by the coil's resistance).
     pub fn for_actuator(
-        a: &crate::actuator::Actuator,
+        a: &crate::control::actuator::Actuator,
         rate_hz: f32,
-    ) -> Result<Self, crate::config::Error> {
+    ) -> Result<Self, crate::control::config::Error> {
         let r = a.coil.resistance_ohm;
         let t = a.time_scales()?;
         let plant = a.plant()?;
@@ -249,7 +249,8 @@ impl Plan {
             .force_coefficient_h_per_m(plant.gap_m(0.0));
         // The position's noise at rest: the allowance the detectors use for the
         // difference of two readings, twice (a window's extremes, not two readings).
-        let still_m = 2.0 * crate::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
+        let still_m =
+            2.0 * crate::control::actuator::NOISE_ALLOWANCE_CODES * t.position_code_m.abs();
         let coil = Coil {
             resistance_ohm: r,
             open_inductance_h: t.coil_open_s * r,
@@ -260,13 +261,17 @@ impl Plan {
             spring_n_per_m: a.mechanics.spring_n_per_m,
             open_force_h_per_m,
         };
-        Self::new(&coil, rate_hz, crate::actuator::DELAY_TICKS, still_m).ok_or(
-            crate::config::Error {
-                param: "coil.resistance_ohm",
-                value: r,
-                reason: crate::config::Reason::NotPositive,
-            },
+        Self::new(
+            &coil,
+            rate_hz,
+            crate::control::actuator::DELAY_TICKS,
+            still_m,
         )
+        .ok_or(crate::control::config::Error {
+            param: "coil.resistance_ohm",
+            value: r,
+            reason: crate::control::config::Reason::NotPositive,
+        })
     }
 
     /// The plan for the file's `coil`, at `rate_hz`, with readings `delay_ticks` periods

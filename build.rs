@@ -22,7 +22,7 @@
 //! the crate; the board's application (`src/device/`) is not needed here.
 use std::{env, fs, path::PathBuf, process::Command};
 
-#[allow(dead_code, unused_imports, clippy::all)]
+#[expect(dead_code, unused_imports, clippy::all)]
 #[path = "src/control/mod.rs"]
 mod control;
 

@@ -19,7 +19,7 @@ fn main() -> ! {
     let acc = no_panic::exercise();
     let table = black_box([1u32, 2, 3]);
     // A bounds check the optimiser cannot remove: the panic the proof must catch.
-    #[allow(clippy::indexing_slicing)]
+    #[expect(clippy::indexing_slicing)]
     let canary = table[black_box(7usize)];
     debug::exit(if acc.wrapping_add(canary) == 0 {
         debug::EXIT_FAILURE

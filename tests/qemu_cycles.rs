@@ -253,7 +253,6 @@ fn main() -> ! {
             );
 
             // The tick builds the law's input from these values (control::Config::step).
-            #[allow(clippy::needless_update)]
             let input = law::Input {
                 x_m: s.estimate.x_m,
                 v_mps: s.estimate.v_mps,

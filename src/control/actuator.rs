@@ -1025,7 +1025,7 @@ pub fn residual_detector(current: &Channel, rate_hz: f32) -> Residual {
     let half_deadline = libm::roundf(0.5 * DEADLINE_S * rate_hz);
     let least = f32::from(2 * RESIDUAL_CONFIRM_TICKS);
     // At least twice the confirmation; far below u16::MAX at any plausible rate.
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let window = math::clamp(half_deadline, least, f32::from(u16::MAX)) as u16;
     Residual {
         noise_codes: NOISE_ALLOWANCE_CODES,

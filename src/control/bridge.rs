@@ -93,7 +93,6 @@ pub const BOARD_PWM_ARR: u16 = 4200;
 /// whole period). The golden traces ([`crate::control::trace`]) are recorded at this
 /// resolution.
 // 4201 fits u16 (checked by the compiler: a const overflow is an error).
-#[allow(clippy::arithmetic_side_effects)]
 pub const BOARD_MAX_DUTY: u16 = BOARD_PWM_ARR + 1;
 
 /// The current's sampling phase on the reference board \[s\]: 28 cycles of the 21 MHz
@@ -354,7 +353,7 @@ pub fn clear_code(clear: f32, max: u16) -> u16 {
         max
     } else if c >= 0.0 {
         // In [0, max): the truncation is the intended rounding down.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let code = c as u16;
         code
     } else {
@@ -389,7 +388,7 @@ pub fn duty_code(fraction: f32, max: u16) -> u16 {
         max
     } else {
         // In [1, max): the truncation is the intended rounding and cannot overflow.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let code = c as u16;
         code
     }

@@ -22,7 +22,7 @@ pub fn sqrt(x: f32) -> f32 {
         // FPSCR exception bits only, and FPU exceptions do not trap). The operands go through
         // core registers because the `sreg` class needs a `vfp2` feature that Rust does not
         // enable for this target.
-        #[allow(unsafe_code)]
+        #[expect(unsafe_code)]
         unsafe {
             core::arch::asm!(
                 "vmov s0, {x}",
@@ -176,7 +176,7 @@ pub fn whole_ticks(t: f32) -> u32 {
         4_000_000_000
     } else if t >= 1.0 {
         // In [1, 4e9): the truncation is the intended rounding down.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let n = t as u32;
         n
     } else {

@@ -325,7 +325,7 @@ mod tests {
         let (mut x, mut v) = (1e-3_f64, 0.0_f64);
         let mut est = Estimate::default();
         for _ in 0..4000 {
-            #[allow(clippy::cast_possible_truncation)]
+            #[expect(clippy::cast_possible_truncation)]
             {
                 est = o.update(&mut st, x as f32, 0.0);
             }

@@ -100,7 +100,7 @@ impl Channel {
             ADC_MAX_CODE
         } else {
             // In (0, 4095): the truncation is the intended rounding.
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
             let code = c as u16;
             code
         }

@@ -289,7 +289,7 @@ impl Config {
             return Reference::hold(state.target_m);
         }
         // u32 -> f32 is exact below 2^24 ticks (14 min at 20 kHz); moves last < 1 s.
-        #[allow(clippy::cast_precision_loss)]
+        #[expect(clippy::cast_precision_loss)]
         let s = state.ticks as f32 * self.ts_s * state.inv_duration;
         if s >= 1.0 {
             state.moving = false;

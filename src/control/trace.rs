@@ -623,7 +623,7 @@ impl<const N: usize> Put<N> {
 
 const fn len_u16(n: usize) -> u16 {
     // HEADER_LEN and RECORD_LEN are small constants.
-    #[allow(clippy::cast_possible_truncation)]
+    #[expect(clippy::cast_possible_truncation)]
     let v = n as u16;
     v
 }

@@ -164,7 +164,7 @@ impl Settings {
             hi_code: hi,
             confirm_ticks: if confirm < 60_000.0 {
                 // In [1, 60000): exact.
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
                 let c = confirm as u16;
                 c
             } else {
@@ -184,7 +184,7 @@ fn code_at(x: f32, up: bool) -> u16 {
         ADC_MAX_CODE
     } else {
         // In (0, 4095): the truncation is the intended rounding.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let k = c as u16;
         k
     }
@@ -275,7 +275,7 @@ impl Config {
 
 #[cfg(test)]
 // Codes from volts and milliamps: small, positive, rounded on purpose.
-#[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+#[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
 mod tests {
     use super::*;
 

@@ -319,7 +319,7 @@ impl Plan {
             let t = libm::ceilf(s * rate_hz);
             if (1.0..1e9).contains(&t) {
                 // A whole number (ceil) within u32's range.
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
                 Some(t as u32)
             } else {
                 None
@@ -351,7 +351,7 @@ impl Plan {
                 let per_constant = open_inductance_h / resistance_ohm * rate_hz;
                 let c = libm::ceilf(PROBE_READINGS / per_constant);
                 // At least one, at most the cap: within u32.
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
                 let c = math::min(math::max(c, 1.0), MAX_PROBE_CYCLES as f32) as u32;
                 c
             },

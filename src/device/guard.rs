@@ -139,7 +139,7 @@ impl Config {
     /// (late start) before it, calls it, then latches `Fault::Overrun` when `end` says it
     /// ended late. Panic-free when `tick` and `end` are.
     #[inline]
-    #[allow(clippy::too_many_arguments)]
+    #[expect(clippy::too_many_arguments)]
     pub fn run<P: SetDutyCycle, O: OutputPin>(
         &self,
         guard: &mut State,
@@ -229,7 +229,7 @@ impl Watchdog {
             1
         } else {
             // In 1..=63: the cast is exact.
-            #[allow(clippy::cast_possible_truncation)]
+            #[expect(clippy::cast_possible_truncation)]
             let c = whole as u8;
             c
         };
@@ -262,7 +262,7 @@ impl Watchdog {
             u32::MAX
         } else {
             // Checked above.
-            #[allow(clippy::cast_possible_truncation)]
+            #[expect(clippy::cast_possible_truncation)]
             let t = ns as u32;
             t
         }

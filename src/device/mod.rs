@@ -129,7 +129,7 @@ pub struct Install {
 /// What the main loop asks of the interrupt.
 // An install carries a whole configuration; there is no heap to box it, and the queue
 // holds one order at a time.
-#[allow(clippy::large_enum_variant)]
+#[expect(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Order {
     /// Arm (see [`Command::Arm`]).

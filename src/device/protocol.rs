@@ -229,7 +229,7 @@ impl fmt::Display for Value {
 
 /// What the board sends.
 // Messages live on the stack while they are encoded, one at a time.
-#[allow(clippy::large_enum_variant)]
+#[expect(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Message<'a> {
     /// The answer to a request.

@@ -92,7 +92,6 @@ pub fn law_outputs() -> impl Iterator<Item = (u32, u32, u32)> {
             return (0, 0, 0);
         };
         // Any input the law gains later stays at its default (zero).
-        #[allow(clippy::needless_update)]
         let input = law::Input {
             x_m,
             v_mps,

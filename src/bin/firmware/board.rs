@@ -98,14 +98,14 @@ pub const TIM1_CLK_HZ: u32 = 2 * PCLK2_HZ;
 
 /// PWM frequency: the actuator's control rate \[Hz\].
 // A rate in Hz is a whole number well inside u32 (checked below).
-#[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+#[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
 pub const PWM_HZ: u32 = ACTUATOR.board.rate_hz as u32;
 /// TIM1 auto-reload: center-aligned, one PWM period is `2 * PWM_ARR` timer counts.
 pub const PWM_ARR: u32 = TIM1_CLK_HZ / (2 * PWM_HZ);
 /// PWM resolution seen by the bridge: the HAL's `max_duty_cycle` is `ARR + 1`, and a
 /// compare value above ARR keeps the output on for the whole period (100 %).
 // ARR is at most 8400 for the 10 kHz the board goes down to (checked below).
-#[allow(clippy::cast_possible_truncation)]
+#[expect(clippy::cast_possible_truncation)]
 pub const PWM_MAX_DUTY: u16 = (PWM_ARR + 1) as u16;
 /// TIM1 repetition counter: center-aligned mode has two over/underflows per period; with
 /// RCR = 1 only every second one is an update event (one ADC trigger and one compare

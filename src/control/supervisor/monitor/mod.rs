@@ -150,7 +150,7 @@ impl Monitors {
                 config::within("monitors.tracking.time_s", t.time_s, ts_s, 1e9 * ts_s)?;
                 let ticks = math::clamp(t.time_s / ts_s, 1.0, 1e9);
                 // In [1, 1e9]: the truncation is the intended rounding down.
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
                 let n = ticks as u32;
                 n
             }
@@ -158,7 +158,7 @@ impl Monitors {
         };
         // The deadline in whole periods; positive, and far below u16::MAX at any rate the
         // tick runs at.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let moving_ticks = math::clamp(
             libm::roundf(super::DEADLINE_S / ts_s),
             1.0,

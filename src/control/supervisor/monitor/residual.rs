@@ -112,7 +112,7 @@ impl Config {
     /// one period under `u` and compares the reading with their envelope, widened by the
     /// back-EMF allowance `emf_a` of each period since the anchor; accumulates the fit's
     /// sums with the regressor `q = k i`, the deviation `e` and the prediction `p`.
-    #[allow(clippy::too_many_arguments)]
+    #[expect(clippy::too_many_arguments)]
     fn bank(
         &self,
         settings: &Residual,

@@ -135,6 +135,31 @@
 //!    stored set back and it is built again before it is used; a stored set that does not
 //!    load or build gives way to the defaults.
 //!
+//! ## Glossary
+//!
+//! One meaning per word, as the code and its docs use it.
+//!
+//! | word | meaning |
+//! |---|---|
+//! | actuator file | the TOML that describes one actuator (mechanics, coil, magnetic circuit, board, tolerances, tuning) and from which every setting is derived ([`control::actuator`]) |
+//! | stroke, stops | the armature's travel, measured from the **open stop** (`x = 0`, largest airgap, where the spring holds it with the coil off) to the **closed stop** (`x` = the stroke, the residual gap left) |
+//! | practical law | the product's law ([`control::law::practical`]); the **paper's law** is the law as printed, kept to reproduce the paper |
+//! | reference | the shaped trajectory (position, velocity, acceleration) the loop follows toward a **set point** |
+//! | margin | the share of the force budget a planned move may use ([`control::shaping`]) |
+//! | minimum-time move | the fastest move the limits allow: the planner's quintic at the whole force budget plus two **current rises** (the coil's rise from zero to the current limit at full drive, at the closed stop) |
+//! | settling target | 1.5 minimum-time moves, at least the paper's 0.2 s ([`control::shaping::Config::settling_target_s`]) |
+//! | rated current | the coil's continuous rating (the I^2 t detector's continuous current) |
+//! | current limit | what the law may ask for: the rated current less the ripple allowance |
+//! | trip | the sampled over-current level, the coil's peak current: seen once a period by the supervisor |
+//! | break level | the board's over-current comparator on the timer's break input, 1.2 times the trip: it coasts the bridge between samples, without software |
+//! | bounds | the controller's uncertainty set: the tolerances of mass, spring, friction and resistance and the airgap surfaces' interval, from which `mu_lo`, `mu_hi` and the inductance bounds follow ([`control::model`]) |
+//! | fault | a cause the supervisor latches (the first is kept) until it is cleared; a **detector** is a fault check with history ([`control::supervisor::monitor`]) |
+//! | safe state, coast | all bridge switches open: the current freewheels through the diodes against the bus and decays |
+//! | armed, disarmed | the board drives the coil in closed loop, or keeps the bridge coasting; it boots disarmed |
+//! | commissioning | measuring an actuator on the board: the coil's resistance and inductance and the position sensor's readings at the stops, loop open ([`device::commission`]), then with the loop closed the **holds**, which the bench tool orders |
+//! | hold | during commissioning, the armature held in closed loop at 1/8, 7/8, 3/8 and 3/4 of the stroke, where the spring, its preload and the inductance are measured |
+//! | probe | a voltage step during a hold or at a stop, from whose current response the inductance there is read |
+//!
 //! ## What the paper gets wrong or leaves loose, and what the code does
 //!
 //! * Force direction: as printed, the magnetic force opens the airgap. A reluctance force

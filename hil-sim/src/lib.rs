@@ -59,6 +59,24 @@
 //! | [`report`] | tables, decimated sample CSV files, PNG plots |
 //! | [`cli`] | the `hil-sim` command line, one module per subcommand |
 //! | [`mod@bench`] | a board on a bench: the `bench` tool, its link, the virtual board |
+//!
+//! ## Glossary
+//!
+//! The core's words are in the `ema` crate docs; these are the simulator's.
+//!
+//! | word | meaning |
+//! |---|---|
+//! | family, member | the seven actuators kept in `hil-sim/actuators/`, each with its tuned file ([`actuator::FAMILY`]) |
+//! | evaluation sequence | an actuator's scenario: rest at the open stop, then 1/8, 7/8, 3/8 and 3/4 of the stroke, one segment each ([`actuator::scenario`]) |
+//! | steady window | the last 50 ms of a segment, where the steady error and the ripple are measured |
+//! | targets | the product's limits a run must stay within ([`targets`]) |
+//! | draw | one random sample with its own seed: a plant from a controller's uncertainty set ([`mod@montecarlo`]), or an actuator from the generator ([`drawn`]) |
+//! | corner plant | a plant at the extremes of the uncertainty set, where `tune` runs its candidates ([`tune::corners`]) |
+//! | seed | the start of a reproducible stream of draws; which seed chooses and which judges: [`seeds`] |
+//! | class | a stated tolerance band: of a converter's gain and offset ([`hal::CalibrationClass`]), or of a quantity commissioning measures ([`commissioning`]) |
+//! | observable | a fault from the first sample at which it can be seen: at once, except a frozen reading, which is what a healthy sensor could read until the true quantity moves ([`faults::observable_after_s`]) |
+//! | named right | the expected fault latched within 1 ms, the current at or below the trip, the bridge coasting from then on ([`faults::Outcome::pass`]) |
+//! | silent failure | a run that misses a target with no fault latched |
 #![deny(missing_docs)]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]

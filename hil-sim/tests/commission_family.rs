@@ -10,12 +10,22 @@
 //! drawn wider than its file, commissioned and tuned, meets every target in closed loop on
 //! its true plant (`hil-sim commission NAME --tune` gives the rate over many draws).
 
+use hil_sim::commissioning::Errors;
+
 #[test]
 fn every_member_is_commissioned_within_its_targets() {
     for e in &hil_sim::actuator::FAMILY {
         let (name, a) = hil_sim::actuator::load(e.name).unwrap();
         let o = hil_sim::commissioning::run(&a, None).unwrap();
-        let Some([r, l_open, l_closed, curve, open, closed]) = o.errors() else {
+        let Some(Errors {
+            resistance: r,
+            inductance_open: l_open,
+            inductance_closed: l_closed,
+            curve,
+            open_codes: open,
+            closed_codes: closed,
+        }) = o.errors()
+        else {
             panic!("{name}: commissioning stopped: {:?}", o.report)
         };
         let share = o.peak_a / f64::from(a.coil.rated_current_a);
@@ -57,7 +67,13 @@ fn small_probe_steps_give_the_inductance_within_five_percent_on_drawn_plants() {
         for _ in 0..16 {
             let draw = hil_sim::commissioning::Draw::new(&mut rng);
             let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
-            let Some([_, open, closed, curve, _, _]) = o.errors() else {
+            let Some(Errors {
+                inductance_open: open,
+                inductance_closed: closed,
+                curve,
+                ..
+            }) = o.errors()
+            else {
                 panic!("{name}: commissioning stopped: {:?}; {draw:?}", o.report)
             };
             worst = [
@@ -108,7 +124,7 @@ fn a_valve_that_snaps_onto_its_stop_in_a_step_s_wait_is_driven_within_its_rating
             "seed {seed}: peak {:.4} A (rated {rated} A), {:?}",
             o.peak_a, o.report
         );
-        let Some([r, ..]) = o.errors() else {
+        let Some(Errors { resistance: r, .. }) = o.errors() else {
             panic!("seed {seed}: commissioning stopped: {:?}", o.report)
         };
         assert!(r.abs() < 0.02, "seed {seed}: {o:?}");
@@ -162,14 +178,19 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
     }
     let (_, a) = hil_sim::actuator::load("product").unwrap();
     let corner = hil_sim::commissioning::Draw {
-        factors: [1.0; 5],
+        factors: hil_sim::commissioning::Factors::NONE,
         preload_share: 0.0,
         gain_error: f64::from(t),
         offset_share: f64::from(t),
         noise_seed: hil_sim::hal::Adc::typical().seed,
     };
     let o = hil_sim::commissioning::run(&a, Some(&corner)).unwrap();
-    let Some([_, _, _, _, open, closed]) = o.errors() else {
+    let Some(Errors {
+        open_codes: open,
+        closed_codes: closed,
+        ..
+    }) = o.errors()
+    else {
         panic!("commissioning stopped: {:?}", o.report)
     };
     assert!(open < 2.0 && closed < 2.0, "{o:?}");
@@ -256,7 +277,12 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                 Some(m) => {
                     let errors = m.inductance_errors(&plant);
                     for (k, (probe, e)) in m.inductances.iter().zip(errors).enumerate() {
-                        let Some((x, l, spread)) = *probe else {
+                        let Some(hil_sim::commissioning::HoldInductance {
+                            x_m: x,
+                            inductance_h: l,
+                            spread_h: spread,
+                        }) = *probe
+                        else {
                             panic!("{name}: no inductance at hold {k}; {draw:?}")
                         };
                         eprintln!(
@@ -391,7 +417,13 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
 fn a_weak_magnet_on_a_resistive_coil_has_its_holds_read_within_two_percent() {
     let (_, a) = hil_sim::actuator::load("valve").unwrap();
     let draw = hil_sim::commissioning::Draw {
-        factors: [0.71, 1.24, 1.29, 0.79, 1.2],
+        factors: hil_sim::commissioning::Factors {
+            surfaces: 0.71,
+            resistance: 1.24,
+            spring: 1.29,
+            mass: 0.79,
+            friction: 1.2,
+        },
         preload_share: 0.0,
         gain_error: 0.0,
         offset_share: 0.0,
@@ -452,7 +484,7 @@ fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_l
     assert!(deviation < 0.05, "{deviation}");
     let mut off = m;
     for p in off.inductances.iter_mut().flatten() {
-        p.1 *= 0.7;
+        p.inductance_h *= 0.7;
     }
     let (wider, _) = hil_sim::commissioning::measured(&a, &d.report, Some(&off)).unwrap();
     assert!(wider.tolerance.surface > 0.42, "{:?}", wider.tolerance);
@@ -637,14 +669,19 @@ fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
         let stroke = plant.stroke_m;
         // Ends high, middle low: the shape a growth gives `1/L`; 2 standard errors 0.5 %.
         let off = [0.002, -0.002, -0.002, 0.002];
-        let holds: Vec<Option<(f64, f64, f64)>> = hil_sim::actuator::SEQUENCE
-            .iter()
-            .zip(off)
-            .map(|(f, e)| {
-                let l = at(f * stroke) * (1.0 + e);
-                Some((f * stroke, l, 0.005 * l))
-            })
-            .collect();
+        let holds: Vec<Option<hil_sim::commissioning::HoldInductance>> =
+            hil_sim::actuator::SEQUENCE
+                .iter()
+                .zip(off)
+                .map(|(f, e)| {
+                    let l = at(f * stroke) * (1.0 + e);
+                    Some(hil_sim::commissioning::HoldInductance {
+                        x_m: f * stroke,
+                        inductance_h: l,
+                        spread_h: 0.005 * l,
+                    })
+                })
+                .collect();
         let report = ema::device::commission::Report {
             inductance: ema::device::commission::Inductance {
                 open_h: (at(0.0) * 1.002) as f32,

@@ -34,14 +34,25 @@ pub struct Args {
 }
 
 /// The quantities judged, with their targets.
-const QUANTITIES: [(&str, f64); 6] = [
-    ("resistance error [%]", 2.0),
-    ("inductance error, open stop [%]", 5.0),
-    ("inductance error, closed stop [%]", 5.0),
-    ("inductance error over the stroke, stops' line [%]", 5.0),
-    ("open stop reading error [codes]", 2.0),
-    ("closed stop reading error [codes]", 2.0),
+const QUANTITIES: [Quantity; 6] = [
+    ("resistance error [%]", 2.0, |e| 100.0 * e.resistance),
+    ("inductance error, open stop [%]", 5.0, |e| {
+        100.0 * e.inductance_open
+    }),
+    ("inductance error, closed stop [%]", 5.0, |e| {
+        100.0 * e.inductance_closed
+    }),
+    (
+        "inductance error over the stroke, stops' line [%]",
+        5.0,
+        |e| 100.0 * e.curve,
+    ),
+    ("open stop reading error [codes]", 2.0, |e| e.open_codes),
+    ("closed stop reading error [codes]", 2.0, |e| e.closed_codes),
 ];
+
+/// A row of [`QUANTITIES`]: its label, its target and its value in the label's unit.
+type Quantity = (&'static str, f64, fn(&commissioning::Errors) -> f64);
 
 /// Actuator time a commissioning may take, the board's routine and the holds \[s\].
 pub const COMMISSIONING_S: f64 = 10.0;
@@ -107,7 +118,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     let outcomes: Vec<_> = runs.iter().map(|(o, _, _)| *o).collect();
     let rated = f64::from(a.coil.rated_current_a);
     let mut endings: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut errors: Vec<[f64; 6]> = Vec::new();
+    let mut errors: Vec<commissioning::Errors> = Vec::new();
     for o in &outcomes {
         match (o.report, o.errors()) {
             (Ok(_), Some(e)) => errors.push(e),
@@ -131,9 +142,8 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     let row = |t: &mut Table, what: &str, v: Vec<f64>, target: Option<f64>| {
         t.push(distribution_row(what, v, target));
     };
-    for (i, (what, target)) in QUANTITIES.iter().enumerate() {
-        let scale = if i < 4 { 100.0 } else { 1.0 };
-        let v = errors.iter().map(|e| scale * e[i].abs()).collect();
+    for (what, target, value) in &QUANTITIES {
+        let v = errors.iter().map(|e| value(e).abs()).collect();
         row(&mut t, what, v, Some(*target));
     }
     // The faults that ended an attempt at the holds, and those that ended the last.

@@ -3,7 +3,7 @@
 use ema::control::actuator::Actuator;
 use ema::device::commission::Report;
 
-use super::IRON_SHARE;
+use super::{HoldInductance, IRON_SHARE};
 
 /// How well the routine's step responses read an end stop's inductance, two standard
 /// errors, relative: the weight of the stops' readings in [`Circuit::fit`] (the routine
@@ -171,9 +171,9 @@ impl Circuit {
     }
 
     /// The circuit that best fits the stops' inductances (the commissioning's `report`)
-    /// and the holds' (`(position [m], inductance [H], two standard errors [H])`, none
-    /// where no probe read one), for the actuator file `a` (its residual gap, stroke and
-    /// pole's aspect; a file in the two-inductance form: a square pole).
+    /// and the holds' (none where no probe read one), for the actuator file `a` (its
+    /// residual gap, stroke and pole's aspect; a file in the two-inductance form: a square
+    /// pole).
     ///
     /// Weighted least squares on `1/L`, each reading by its own spread (the holds': their
     /// probes'; the stops': [`STOP_INDUCTANCE_CLASS`]): for each growth `q` the line in
@@ -184,7 +184,7 @@ impl Circuit {
     /// the file writes needs a positive iron reluctance). Fewer than two holds read: the
     /// growth is not fitted (a line through the readings).
     #[must_use]
-    pub fn fit(report: &Report, a: &Actuator, holds: &[Option<(f64, f64, f64)>]) -> Self {
+    pub fn fit(report: &Report, a: &Actuator, holds: &[Option<HoldInductance>]) -> Self {
         let stops = Self::through_stops(report, a);
         let (open_h, closed_h) = (
             f64::from(report.inductance.open_h),
@@ -200,7 +200,8 @@ impl Circuit {
                 (closed_h / class).powi(2),
             ),
         ];
-        points.extend(holds.iter().flatten().map(|&(x, l, two_se)| {
+        points.extend(holds.iter().flatten().map(|h| {
+            let (x, l, two_se) = (h.x_m, h.inductance_h, h.spread_h);
             let sd = 0.5 * two_se / l;
             (stops.gap_m(x), 1.0 / l, (l / sd).powi(2))
         }));
@@ -239,13 +240,13 @@ impl Circuit {
     }
 
     /// The largest deviation, relative, of this circuit's inductance from each of the
-    /// holds' readings (`(position [m], inductance [H], _)`; `None` when none was read).
+    /// holds' readings (`None` when none was read).
     #[must_use]
-    pub fn deviation(&self, holds: &[Option<(f64, f64, f64)>]) -> Option<f64> {
+    pub fn deviation(&self, holds: &[Option<HoldInductance>]) -> Option<f64> {
         holds
             .iter()
             .flatten()
-            .map(|&(x, l, _)| (self.inductance_h(x) / l - 1.0).abs())
+            .map(|h| (self.inductance_h(h.x_m) / h.inductance_h - 1.0).abs())
             .reduce(crate::targets::worse)
     }
 }

@@ -6,7 +6,7 @@ use ema::device::commission::Report;
 
 use super::{
     fit_armature, fit_spring, hold_inductance, hold_probe, measured, probe_capture, pull, Armature,
-    Circuit, Draw, ProbeSample, Spring, HOLD_PROBE_RUNS,
+    Circuit, Draw, HoldInductance, ProbeSample, Spring, HOLD_PROBE_RUNS,
 };
 use crate::plant::Params;
 use crate::scenario::{Sensors, TruePlant};
@@ -29,10 +29,10 @@ pub struct Mechanics {
     pub spring: Spring,
     /// The mass and the friction ([`fit_armature`]).
     pub armature: Option<Armature>,
-    /// The inductance at each hold, from its probe ([`probe_inductance`](super::probe_inductance)): corrected
-    /// position \[m\], inductance \[H\] and two standard errors of it \[H\]; none
-    /// where no probe ran or its spread exceeds [`HOLD_PROBE_MAX_SPREAD`](super::HOLD_PROBE_MAX_SPREAD).
-    pub inductances: [Option<(f64, f64, f64)>; crate::actuator::SEQUENCE.len()],
+    /// The inductance at each hold, from its probe
+    /// ([`probe_inductance`](super::probe_inductance)); none where no probe ran or its
+    /// spread exceeds [`HOLD_PROBE_MAX_SPREAD`](super::HOLD_PROBE_MAX_SPREAD).
+    pub inductances: [Option<HoldInductance>; crate::actuator::SEQUENCE.len()],
     /// The magnetic circuit fitted to the stops' inductances and the holds'
     /// ([`Circuit::fit`]): the pull the spring and the mass are read with.
     pub circuit: Circuit,
@@ -44,8 +44,8 @@ impl Mechanics {
     #[must_use]
     pub fn inductance_errors(&self, plant: &Params) -> [f64; crate::actuator::SEQUENCE.len()] {
         self.inductances.map(|p| {
-            p.map_or(f64::NAN, |(x, l, _)| {
-                l / plant.inductance_h(plant.gap_m(x)) - 1.0
+            p.map_or(f64::NAN, |h| {
+                h.inductance_h / plant.inductance_h(plant.gap_m(h.x_m)) - 1.0
             })
         })
     }
@@ -60,10 +60,10 @@ impl Mechanics {
         self.inductances
             .iter()
             .flatten()
-            .map(|&(x, l, _)| {
+            .map(|h| {
                 #[expect(clippy::cast_possible_truncation)]
-                let form = plant.magnetics.inductance_h(plant.gap_m(x as f32));
-                (f64::from(form) / l - 1.0).abs()
+                let form = plant.magnetics.inductance_h(plant.gap_m(h.x_m as f32));
+                (f64::from(form) / h.inductance_h - 1.0).abs()
             })
             .reduce(crate::targets::worse)
     }
@@ -84,7 +84,7 @@ impl Mechanics {
         report: &Report,
         a: &Actuator,
         holds: &Holds,
-        inductances: [Option<(f64, f64, f64)>; crate::actuator::SEQUENCE.len()],
+        inductances: [Option<HoldInductance>; crate::actuator::SEQUENCE.len()],
     ) -> Self {
         let circuit = Circuit::fit(report, a, &inductances);
         let stroke_m = circuit.stroke_m;

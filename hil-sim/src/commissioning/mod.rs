@@ -52,11 +52,12 @@ pub use measured::{
     measured, FRICTION_CLASS_DAMPING, IRON_SHARE, MASS_CLASS, SPRING_CLASS, SURFACE_CLASS,
 };
 pub use probe::{
-    hold_inductance, hold_probe, probe_capture, probe_inductance, ProbeSample, HOLD_PROBE_CYCLES,
-    HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_SPREAD, HOLD_PROBE_RUNS, HOLD_PROBE_SHARE,
+    hold_inductance, hold_probe, probe_capture, probe_inductance, HoldInductance, ProbeSample,
+    HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_SPREAD, HOLD_PROBE_RUNS,
+    HOLD_PROBE_SHARE,
 };
 pub use run::{
-    closed_loop, curve_error, run, run_on, true_plant, ClosedLoop, Draw, Outcome,
+    closed_loop, curve_error, run, run_on, true_plant, ClosedLoop, Draw, Errors, Factors, Outcome,
     CLOSED_LOOP_VALIDATION, CURVE_POSITIONS,
 };
 use spring::{corrected, pull};

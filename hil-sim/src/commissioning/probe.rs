@@ -189,6 +189,18 @@ pub struct ProbeSample {
     pub vbus_v: f64,
 }
 
+/// The inductance one hold's probes read ([`hold_inductance`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HoldInductance {
+    /// The hold's mean position, corrected with the end stops the commissioning measured
+    /// \[m\].
+    pub x_m: f64,
+    /// The inductance there \[H\].
+    pub inductance_h: f64,
+    /// Two standard errors of it \[H\].
+    pub spread_h: f64,
+}
+
 /// One hold's inductance from its probes' captures (the board's samples at every tick
 /// from each probe's first), read with [`probe_inductance`] for the `probe`, the
 /// converter `delay` ticks late, the period `ts_s`, the commissioning's `report` and the
@@ -218,7 +230,7 @@ pub fn hold_inductance(
     ts_s: f64,
     report: &Report,
     line: Circuit,
-) -> Option<(f64, f64, f64)> {
+) -> Option<HoldInductance> {
     let ticks = probe.ticks();
     let position = corrected(report, line.stroke_m);
     let split: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = runs
@@ -260,5 +272,9 @@ pub fn hold_inductance(
         ts_s,
         r_ohm,
     )?;
-    (spread < HOLD_PROBE_MAX_SPREAD * l).then_some((x, l, spread))
+    (spread < HOLD_PROBE_MAX_SPREAD * l).then_some(HoldInductance {
+        x_m: x,
+        inductance_h: l,
+        spread_h: spread,
+    })
 }

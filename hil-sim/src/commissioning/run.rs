@@ -25,8 +25,8 @@ use crate::Error;
 /// the same error and hide its spread.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Draw {
-    /// Surfaces, resistance, spring rate, mass, friction: factors on the file's \[-\].
-    pub factors: [f64; 5],
+    /// Factors on the file's surfaces, resistance, spring rate, mass and friction.
+    pub factors: Factors,
     /// The unknown preload of a file that gives none, as a share of the spring's force
     /// over the stroke \[-\].
     pub preload_share: f64,
@@ -38,11 +38,43 @@ pub struct Draw {
     pub noise_seed: u64,
 }
 
+/// The factors a [`Draw`] puts on the file's values \[-\].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Factors {
+    /// On the airgap's surfaces.
+    pub surfaces: f64,
+    /// On the coil's resistance.
+    pub resistance: f64,
+    /// On the spring's rate.
+    pub spring: f64,
+    /// On the mass.
+    pub mass: f64,
+    /// On the friction.
+    pub friction: f64,
+}
+
+impl Factors {
+    /// Every factor 1: the file's values.
+    pub const NONE: Self = Self {
+        surfaces: 1.0,
+        resistance: 1.0,
+        spring: 1.0,
+        mass: 1.0,
+        friction: 1.0,
+    };
+}
+
 impl Draw {
     /// One draw.
     pub fn new<R: Rng + ?Sized>(rng: &mut R) -> Self {
         let mut f = |s: f64| rng.random_range(1.0 - s..1.0 + s);
-        let factors = [f(0.3), f(0.3), f(0.3), f(0.3), f(0.5)];
+        let factors = Factors {
+            surfaces: f(0.3),
+            resistance: f(0.3),
+            spring: f(0.3),
+            mass: f(0.3),
+            friction: f(0.5),
+        };
         Self {
             factors,
             preload_share: rng.random_range(0.0..0.2),
@@ -62,7 +94,13 @@ impl Draw {
     /// `plant` (the file's) drawn.
     #[must_use]
     pub fn apply(&self, plant: &Params) -> Params {
-        let [surfaces, r, k, m, friction] = self.factors;
+        let Factors {
+            surfaces,
+            resistance: r,
+            spring: k,
+            mass: m,
+            friction,
+        } = self.factors;
         let mut p = plant.clone();
         p.scale_surfaces(surfaces);
         p.resistance_ohm *= r;
@@ -102,23 +140,40 @@ pub struct Outcome {
     pub curve_error: f64,
 }
 
+/// What a commissioning read wrong ([`Outcome::errors`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Errors {
+    /// The resistance's error, relative \[-\].
+    pub resistance: f64,
+    /// The inductance's error at the open stop, relative \[-\].
+    pub inductance_open: f64,
+    /// The inductance's error at the closed stop, relative \[-\].
+    pub inductance_closed: f64,
+    /// The inductance curve's over the stroke ([`Outcome::curve_error`], unsigned) \[-\].
+    pub curve: f64,
+    /// The open stop reading's error \[position codes\].
+    pub open_codes: f64,
+    /// The closed stop reading's error \[position codes\].
+    pub closed_codes: f64,
+}
+
 impl Outcome {
     /// Relative errors of the resistance, the two inductances and the inductance curve
-    /// over the stroke ([`Outcome::curve_error`], unsigned), and the end stops' errors in
-    /// position codes; `None` for a commissioning that stopped.
+    /// over the stroke, and the end stops' errors in position codes; `None` for a
+    /// commissioning that stopped.
     #[must_use]
-    pub fn errors(&self) -> Option<[f64; 6]> {
+    pub fn errors(&self) -> Option<Errors> {
         let r = self.report.ok()?;
         let rel = |got: f32, want: f64| f64::from(got) / want - 1.0;
         let codes = |got: f32, want: f64| (f64::from(got) - want).abs() / self.code_m;
-        Some([
-            rel(r.resistance.ohm, self.resistance_ohm),
-            rel(r.inductance.open_h, self.inductance_h[0]),
-            rel(r.inductance.closed_h, self.inductance_h[1]),
-            self.curve_error,
-            codes(r.ends.open_m, self.ends_m[0]),
-            codes(r.ends.closed_m, self.ends_m[1]),
-        ])
+        Some(Errors {
+            resistance: rel(r.resistance.ohm, self.resistance_ohm),
+            inductance_open: rel(r.inductance.open_h, self.inductance_h[0]),
+            inductance_closed: rel(r.inductance.closed_h, self.inductance_h[1]),
+            curve: self.curve_error,
+            open_codes: codes(r.ends.open_m, self.ends_m[0]),
+            closed_codes: codes(r.ends.closed_m, self.ends_m[1]),
+        })
     }
 }
 

@@ -199,12 +199,12 @@ pub fn actuator_file(
             .inductances
             .iter()
             .flatten()
-            .map(|(x, l, spread)| {
+            .map(|h| {
                 format!(
                     "{} +- {} H at {} m",
-                    sig(*l, 4),
-                    sig(*spread, 2),
-                    sig(*x, 4)
+                    sig(h.inductance_h, 4),
+                    sig(h.spread_h, 2),
+                    sig(h.x_m, 4)
                 )
             })
             .collect();

@@ -12,7 +12,7 @@ use ema::device::protocol::{Command, Trigger};
 use super::{capture_move, commissioned_sets, read_capture, set_all, status};
 use crate::bench::link::{Link, Port};
 use crate::bench::{fault_name, Capture};
-use crate::commissioning::{Holds, Mechanics};
+use crate::commissioning::{HoldInductance, Holds, Mechanics};
 use crate::report::sig;
 
 /// Measures the magnetic circuit between the stops, the spring, the mass and the friction
@@ -320,15 +320,15 @@ fn readings(c: &Capture) -> anyhow::Result<Vec<(f64, f64)>> {
 fn print_inductances(
     out: &mut dyn Write,
     stroke_m: f64,
-    inductances: &[Option<(f64, f64, f64)>],
+    inductances: &[Option<HoldInductance>],
 ) -> anyhow::Result<()> {
     for (f, l) in crate::actuator::SEQUENCE.iter().zip(inductances) {
         let line = match l {
-            Some((x, l, spread)) => format!(
+            Some(h) => format!(
                 "{} uH +- {} at {} mm",
-                sig(l * 1e6, 4),
-                sig(spread * 1e6, 2),
-                sig(x * 1e3, 4)
+                sig(h.inductance_h * 1e6, 4),
+                sig(h.spread_h * 1e6, 2),
+                sig(h.x_m * 1e3, 4)
             ),
             None => format!(
                 "not read at the hold at {} mm (the current did not step, or the probes \
@@ -351,7 +351,7 @@ fn print_mechanics(
     out: &mut dyn Write,
     file: &Actuator,
     mechanics: &Mechanics,
-    inductances: &[Option<(f64, f64, f64)>],
+    inductances: &[Option<HoldInductance>],
 ) -> anyhow::Result<()> {
     let c = mechanics.circuit;
     let n2 = f64::from(file.coil.turns).powi(2);

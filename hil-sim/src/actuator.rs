@@ -67,10 +67,10 @@ macro_rules! entry {
 /// file. Together they span 5 g to 1 kg, 50 to 5000 N/m, 0.2 to 20 ohm, 50 to 2000 turns,
 /// 0.5 to 10 mm of stroke, 0.3 to 20 A, 12 to 48 V and 10 to 50 kHz.
 ///
-/// Not every actuator can be tuned: `hil-sim/actuators/micro-valve-stiff.toml` (5 g on a
-/// 5000 N/m spring) is refused by `tune`, which names the target it misses and where: at
-/// the best gains a corner plant overshoots, its disturbance estimate lagging the model
-/// error at the end of a move.
+/// Not every actuator can be tuned: `hil-sim/actuators/magnet-1kg-underdamped.toml` (1.19 kg
+/// on a 7370 N/m spring with 0.05 of critical damping, a slow coil, 12.9 kHz) is refused by
+/// `tune`, which names the target it misses and where: at the best gains a corner plant
+/// overshoots.
 pub const FAMILY: [Entry; 7] = [
     entry!("product"),
     entry!("valve"),

@@ -10,7 +10,12 @@
 //!   `to`; the time from `start_s` to the first sample after which `|x - to|` stays within
 //!   the band until the segment ends. `None` when the last sample is outside the band (or
 //!   the step is zero); `0` when no sample is outside.
-//! * **overshoot**: `max ((x - to) sign(step)) / |step|` over the segment, in %, floored at 0.
+//! * **overshoot**: `max ((x - to) sign(step)) / |step|` over the first excursion past the
+//!   target (from the first sample past `to` to the last one before `x` is back on the
+//!   near side), in %, 0 when no sample passes `to`. Later crossings are the loop's noise
+//!   about a settled position, which the converter's noise sets and no gain removes:
+//!   counted over the whole segment, a settled armature wandering 3.5 standard deviations
+//!   of its jitter (a quarter of a second after a move) was taken for an overshoot.
 //! * **steady-state error**: mean of `x - r` over the samples in the steady window, in um
 //!   and in % of `|to|` (as the paper reports it). Signed: negative is short of the target.
 //! * **error at a time**: `x - r` at the sample at or just before the probe time, in um and
@@ -287,6 +292,28 @@ pub(crate) fn compute(
     }
 }
 
+/// The overshoot of a step of `step` to `to_m` over the segment's samples `seg` \[%\]: the
+/// largest distance past the target during the first excursion past it (see the module
+/// documentation); NaN when a position is not a number.
+fn overshoot_pct(seg: &[Sample], to_m: f64, step: f64) -> f64 {
+    if step == 0.0 {
+        return 0.0;
+    }
+    if seg.iter().any(|s| s.x_m.is_nan()) {
+        return f64::NAN;
+    }
+    let past = |s: &Sample| 100.0 * (s.x_m - to_m) * step.signum() / step.abs();
+    let Some(first) = seg.iter().position(|s| past(s) > 0.0) else {
+        return 0.0;
+    };
+    seg.get(first..)
+        .unwrap_or_default()
+        .iter()
+        .map(past)
+        .take_while(|&p| p > 0.0)
+        .fold(0.0, worse)
+}
+
 fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[ImpactAt]) -> Segment {
     let a = trace.partition_point(|s| s.t_s < spec.start_s);
     let b = trace.partition_point(|s| s.t_s < spec.end_s);
@@ -302,13 +329,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
             Some(j) => seg.get(j + 1).map(|s| s.t_s - spec.start_s),
         }
     };
-    let overshoot_pct = if step == 0.0 {
-        0.0
-    } else {
-        seg.iter()
-            .map(|s| 100.0 * (s.x_m - spec.to_m) * step.signum() / step.abs())
-            .fold(0.0, worse)
-    };
+    let overshoot_pct = overshoot_pct(seg, spec.to_m, step);
 
     let w0 = trace
         .partition_point(|s| s.t_s < spec.end_s - window_s)
@@ -404,6 +425,33 @@ mod tests {
             })
             .collect();
         (sc, trace)
+    }
+
+    /// The overshoot is the first excursion past the target: a later, larger excursion
+    /// of a settled position (the loop's noise) does not count; a NaN position does.
+    #[test]
+    fn the_overshoot_is_the_first_excursion_past_the_target() {
+        let at = |x_m: f64| Sample {
+            x_m,
+            ..Sample::default()
+        };
+        // A step of 1 mm up to 1 mm: 0.5 mm, past by 1 % (10 um) and back, then settled
+        // below the target with a 3 % excursion later.
+        let seg: Vec<Sample> = [
+            0.5e-3, 0.9e-3, 1.005e-3, 1.01e-3, 0.999e-3, 0.9995e-3, 1.03e-3,
+        ]
+        .into_iter()
+        .map(at)
+        .collect();
+        let o = overshoot_pct(&seg, 1e-3, 1e-3);
+        assert!((o - 1.0).abs() < 1e-9, "{o}");
+        // Down steps are judged the other way; no sample past the target is 0.
+        let down: Vec<Sample> = [1.0e-3, 0.4e-3, 0.51e-3].into_iter().map(at).collect();
+        assert!((overshoot_pct(&down, 0.5e-3, -0.5e-3) - 20.0).abs() < 1e-9);
+        let short: Vec<Sample> = [0.0, 0.4e-3, 0.49e-3].into_iter().map(at).collect();
+        assert_eq!(overshoot_pct(&short, 0.5e-3, 0.5e-3), 0.0);
+        let nan: Vec<Sample> = [0.0, f64::NAN, 0.49e-3].into_iter().map(at).collect();
+        assert!(overshoot_pct(&nan, 0.5e-3, 0.5e-3).is_nan());
     }
 
     #[test]

@@ -429,18 +429,22 @@ fn tune_writes_a_tuned_file_that_loads() {
     );
 }
 
-/// An actuator the law cannot be tuned for (5 g on a 5000 N/m spring: a corner plant
-/// overshoots at the best gains) is refused: no tuned file, and the diagnosis names the
+/// An actuator the law cannot be tuned for (1.19 kg on a 7370 N/m spring with little
+/// friction: a corner plant overshoots at the best gains) is refused: no tuned file, and the diagnosis names the
 /// target missed, the rate and by how much.
 #[test]
 fn tune_refuses_an_actuator_it_cannot_tune_and_names_the_target() {
     let out = dir("tune-refused");
     std::fs::create_dir_all(&out).unwrap();
-    let file = out.join("micro-valve-stiff.toml");
-    std::fs::write(&file, include_str!("../actuators/micro-valve-stiff.toml")).unwrap();
+    let file = out.join("magnet-1kg-underdamped.toml");
+    std::fs::write(
+        &file,
+        include_str!("../actuators/magnet-1kg-underdamped.toml"),
+    )
+    .unwrap();
     let (o, printed) = tune_at_20_khz(&file, &out);
     assert_eq!(o.tuned, None, "{printed}");
-    assert!(!out.join("micro-valve-stiff.tuned.toml").exists());
+    assert!(!out.join("magnet-1kg-underdamped.tuned.toml").exists());
     let r = o
         .report
         .refusal

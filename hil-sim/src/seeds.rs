@@ -27,6 +27,8 @@ pub const DRAWN_DEVELOPMENT: u64 = 101;
 /// was chosen on it.
 pub const RESULTS: u64 = 3;
 
-/// Seed of the drawn actuators `RESULTS.md` judges on: none of them was looked at while a
-/// rule, a search bound or a threshold was written.
+/// Seed of the drawn actuators `RESULTS.md` judges on. Its actuator 6 was looked at when
+/// the overshoot became the first excursion past the target (and its actuator 16 is the
+/// example of a refused actuator): for that rule it is a development seed now, and the
+/// next judgement takes a seed nobody has drawn with.
 pub const DRAWN_JUDGE: u64 = 202;

@@ -85,7 +85,7 @@ use crate::control::math;
 use crate::control::model::{self, Bounds, Convention, Fringing, Plant, Tolerance, MU0_H_PER_M};
 use crate::control::observer;
 use crate::control::sense::{
-    Calibration, Channel, ADC_MAX_CODE, NOISE_RMS_CODES, RAIL_MARGIN_CODES,
+    Calibration, Channel, PositionCorrection, ADC_MAX_CODE, NOISE_RMS_CODES, RAIL_MARGIN_CODES,
 };
 use crate::control::shaping;
 use crate::control::supervisor::monitor::{Monitors, Residual, Stuck, Thermal, Tracking};
@@ -309,6 +309,12 @@ pub const RIPPLE_SHARE: f32 = 0.02;
 /// the calibration leaves room for both at either end of the stroke, so that such a sensor
 /// reads within the converter's plausible window until commissioning measures its ends.
 pub const POSITION_SENSOR_TOLERANCE: f32 = 0.03;
+
+/// The room [`Actuator::calibration`] leaves for a position sensor's error at either end
+/// of the stroke, as a share of its span: an offset and a gain error of
+/// [`POSITION_SENSOR_TOLERANCE`] each \[-\]. A commissioning's correction beyond it is
+/// refused ([`Actuator::calibration_with`]).
+pub const POSITION_CORRECTION_ROOM: f32 = 2.0 * POSITION_SENSOR_TOLERANCE;
 /// The board's over-current comparator, per unit of the peak current (the software trip):
 /// 20 % above it, for the PWM ripple and the rise within one period that the sampled trip
 /// cannot see.
@@ -591,7 +597,7 @@ impl Actuator {
         let window_hi = ADC_MAX_CODE - RAIL_MARGIN_CODES;
         // Below the zero and above the span's end, room for an offset and a gain error of
         // the tolerance each (2 T of the span) and the noise's reach, inside the window.
-        let room = 2.0 * POSITION_SENSOR_TOLERANCE;
+        let room = POSITION_CORRECTION_ROOM;
         let reach = NOISE_SIGMAS * NOISE_RMS_CODES;
         let inside = f32::from(window_hi) - f32::from(window_lo) - 2.0 * reach;
         let span_codes = inside / (1.0 + 2.0 * room);
@@ -615,6 +621,33 @@ impl Actuator {
                 max_code: window_hi,
             },
         }
+    }
+
+    /// The converters' calibration with the position sensor's measured gain and offset
+    /// taken out ([`PositionCorrection`], from a commissioning's end stops).
+    ///
+    /// A correction is refused beyond the room [`Actuator::calibration`] leaves at either
+    /// end of the stroke, [`POSITION_CORRECTION_ROOM`]: a sensor off by more would read
+    /// outside the plausible window at a stop, so a larger measured error is not the
+    /// sensor's but a stroke or span in the file that the actuator does not have.
+    ///
+    /// # Errors
+    /// `sensor.position_gain` or `sensor.position_offset_codes` not finite or beyond the
+    /// room.
+    pub fn calibration_with(&self, c: &PositionCorrection) -> Result<Calibration, Error> {
+        let mut cal = self.calibration();
+        let room = POSITION_CORRECTION_ROOM;
+        config::within("sensor.position_gain", c.gain, 1.0 - room, 1.0 + room)?;
+        let span_codes = self.board.position_span_m / cal.position.scale;
+        let reach = room * span_codes.abs();
+        config::within(
+            "sensor.position_offset_codes",
+            c.offset_codes,
+            -reach,
+            reach,
+        )?;
+        cal.position = cal.position.corrected(c);
+        Ok(cal)
     }
 
     /// The actuator's time scales.
@@ -1300,5 +1333,72 @@ mod tests {
         let k = a.consistency().unwrap();
         assert!(k.flux_density_t > SATURATION_T, "{k:?}");
         assert_eq!(refused_by(&a).map(|r| r.1), Some(RULE_SATURATION));
+    }
+
+    /// A sensor 2.5 % long and 40 codes high, read at the stops through the file's
+    /// calibration: the correction from those two readings reads the true position
+    /// everywhere on the stroke, to a tenth of a code.
+    #[test]
+    fn the_stops_take_a_sensors_gain_and_offset_out() {
+        let a = Actuator::PRODUCT;
+        let file = a.calibration().position;
+        let stroke = a.mechanics.stroke_m;
+        let (gain, offset) = (1.025_f32, 40.0_f32);
+        // The code such a sensor gives at true position x, and what the file reads of it.
+        let code = |x: f32| x * gain / file.scale + file.offset_code + offset;
+        let read = |x: f32| (code(x) - file.offset_code) * file.scale;
+        let c = PositionCorrection::from_stops(read(0.0), read(stroke), stroke, file.scale);
+        assert!((c.gain - gain).abs() < 1e-5, "{c:?}");
+        assert!((c.offset_codes - offset).abs() < 1e-3, "{c:?}");
+        let fixed = a.calibration_with(&c).unwrap().position;
+        for k in 0..=8 {
+            let x = stroke * k as f32 / 8.0;
+            let got = (code(x) - fixed.offset_code) * fixed.scale;
+            assert!((got - x).abs() < 0.1 * file.scale, "x {x}: {got}");
+        }
+        // Uncorrected, the same sensor is off by 2.5 % of the position plus 40 codes.
+        assert!((read(stroke) - stroke).abs() > 0.02 * stroke);
+    }
+
+    /// Beyond the room the calibration leaves, a correction is refused by name.
+    #[test]
+    fn a_correction_beyond_the_room_is_refused_by_name() {
+        let a = Actuator::PRODUCT;
+        let room = POSITION_CORRECTION_ROOM;
+        let span_codes = a.board.position_span_m / a.calibration().position.scale;
+        for (c, param) in [
+            (
+                PositionCorrection {
+                    gain: 1.0 + 1.01 * room,
+                    offset_codes: 0.0,
+                },
+                "sensor.position_gain",
+            ),
+            (
+                PositionCorrection {
+                    gain: f32::NAN,
+                    offset_codes: 0.0,
+                },
+                "sensor.position_gain",
+            ),
+            (
+                PositionCorrection {
+                    gain: 1.0,
+                    offset_codes: -1.01 * room * span_codes,
+                },
+                "sensor.position_offset_codes",
+            ),
+        ] {
+            assert_eq!(a.calibration_with(&c).unwrap_err().param, param, "{c:?}");
+        }
+        let inside = PositionCorrection {
+            gain: 1.0 - 0.99 * room,
+            offset_codes: 0.99 * room * span_codes,
+        };
+        assert!(a.calibration_with(&inside).is_ok());
+        assert_eq!(
+            a.calibration_with(&PositionCorrection::NONE),
+            Ok(a.calibration())
+        );
     }
 }

@@ -131,6 +131,60 @@ impl Channel {
     }
 }
 
+/// The position sensor's own gain and offset, as a commissioning measures them at the
+/// two end stops against the calibration an actuator file gives
+/// ([`crate::control::actuator::Actuator::calibration`]).
+///
+/// A sensor reads `x (1 + e) + o` where the file's calibration expects `x`: a gain error
+/// `e` and an offset `o`. With the armature at the open stop (`x = 0`) it reads `o`, at the
+/// closed stop (`x` the stroke) `stroke (1 + e) + o`: the two readings give both, and the
+/// corrected channel reads the true position at both stops and, the sensor being linear,
+/// between them. The file's calibration is [`PositionCorrection::NONE`].
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
+#[serde(deny_unknown_fields)]
+pub struct PositionCorrection {
+    /// The sensor's span between the stops over the stroke, `1 + e` \[-\].
+    pub gain: f32,
+    /// Its reading at the open stop, in the converter's codes \[code\].
+    pub offset_codes: f32,
+}
+
+impl PositionCorrection {
+    /// No correction: the file's calibration.
+    pub const NONE: Self = Self {
+        gain: 1.0,
+        offset_codes: 0.0,
+    };
+
+    /// The correction from the mean readings at the open and the closed stop \[m\], taken
+    /// with a channel of `scale` metres per code, for a stroke of `stroke_m`.
+    #[must_use]
+    pub fn from_stops(open_m: f32, closed_m: f32, stroke_m: f32, scale: f32) -> Self {
+        Self {
+            gain: (closed_m - open_m) / stroke_m,
+            offset_codes: open_m / scale,
+        }
+    }
+}
+
+impl Default for PositionCorrection {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+impl Channel {
+    /// The channel with a sensor's measured gain and offset taken out: reads `x` where the
+    /// sensor reads `x (1 + e) + o`.
+    #[must_use]
+    pub fn corrected(mut self, c: &PositionCorrection) -> Self {
+        self.offset_code += c.offset_codes;
+        self.scale /= c.gain;
+        self
+    }
+}
+
 /// Calibration of the three channels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]

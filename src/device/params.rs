@@ -1,11 +1,14 @@
-//! The board's parameters: the actuator file it was built for, and the set-point source.
+//! The board's parameters: the actuator file it was built for, the position sensor's
+//! correction a commissioning measured, and the set-point source.
 //! Read and changed by name over the link; validated exactly as a build validates an
 //! actuator file; stored in flash by [`crate::device::store`].
 //!
 //! Names are the actuator file's dotted field names (`mechanics.mass_kg`,
 //! `coil.rated_current_a`, `board.supply_v`, `tuning.alpha_per_s`, ...), `setpoint.*`
-//! for the analog set point ([`crate::device::analog`]) and `link.*` for the host's timeout
-//! ([`crate::device::liveness`]). A change is validated with everything
+//! for the analog set point ([`crate::device::analog`]), `link.*` for the host's timeout
+//! ([`crate::device::liveness`]) and `sensor.position_gain`, `sensor.position_offset_codes`
+//! for the position sensor's gain and offset measured at the end stops
+//! ([`PositionCorrection`], applied by [`Actuator::calibration_with`]). A change is validated with everything
 //! else: the whole set must derive settings ([`Actuator::settings`]) that build, on this
 //! board ([`Board`]); a refusal names the field, its value and why, as the build does.
 //!
@@ -33,6 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::control::actuator::{Actuator, Magnetics};
 use crate::control::config::{self, Error};
+use crate::control::sense::PositionCorrection;
 use crate::control::Settings;
 use crate::device::analog;
 use crate::device::liveness;
@@ -48,6 +52,9 @@ pub struct Params {
     pub setpoint: analog::Settings,
     /// The host's timeout.
     pub link: liveness::Settings,
+    /// The position sensor's gain and offset a commissioning measured at the end stops
+    /// ([`PositionCorrection::NONE`] until one has).
+    pub sensor: PositionCorrection,
 }
 
 /// What a parameter holds.
@@ -88,7 +95,7 @@ pub const KIND_FIXED: &str = "the magnetic circuit's form is chosen in the actua
 pub const MAGNETICS_KINDS: [&str; 2] = ["geometry", "inductance"];
 
 /// Every parameter, in the order of the actuator file, then the board's own.
-pub const TABLE: [Info; 34] = [
+pub const TABLE: [Info; 36] = [
     number("mechanics.mass_kg"),
     number("mechanics.spring_n_per_m"),
     number("mechanics.preload_n"),
@@ -127,6 +134,8 @@ pub const TABLE: [Info; 34] = [
     number("tolerance.spring"),
     number("tolerance.friction"),
     number("tolerance.resistance"),
+    number("sensor.position_gain"),
+    number("sensor.position_offset_codes"),
     Info {
         name: "setpoint.source",
         kind: Kind::Choice(&analog::Source::NAMES),
@@ -204,6 +213,7 @@ impl Params {
             actuator,
             setpoint: analog::Settings::default(),
             link: liveness::Settings::default(),
+            sensor: PositionCorrection::NONE,
         }
     }
 
@@ -272,15 +282,17 @@ impl Params {
             27 => number(&mut a.tolerance.spring),
             28 => number(&mut a.tolerance.friction),
             29 => number(&mut a.tolerance.resistance),
-            30 => Ok(Field::Source(&mut self.setpoint.source)),
-            31 => number(&mut self.setpoint.filter_s),
-            32 => number(&mut self.link.timeout_s),
-            33 => Ok(Field::OnTimeout(&mut self.link.on_timeout)),
-            34..=37 => match &mut a.tuning {
+            30 => number(&mut self.sensor.gain),
+            31 => number(&mut self.sensor.offset_codes),
+            32 => Ok(Field::Source(&mut self.setpoint.source)),
+            33 => number(&mut self.setpoint.filter_s),
+            34 => number(&mut self.link.timeout_s),
+            35 => Ok(Field::OnTimeout(&mut self.link.on_timeout)),
+            36..=39 => match &mut a.tuning {
                 Some(t) => match k {
-                    34 => number(&mut t.alpha_per_s),
-                    35 => number(&mut t.observer_rad_s),
-                    36 => number(&mut t.margin),
+                    36 => number(&mut t.alpha_per_s),
+                    37 => number(&mut t.observer_rad_s),
+                    38 => number(&mut t.margin),
                     _ => Ok(Field::Flag(&mut t.disturbance_follows_force)),
                 },
                 None => Err(Refused::Unknown),
@@ -355,6 +367,7 @@ impl Params {
             });
         }
         let mut s = self.actuator.settings()?;
+        s.sense = self.actuator.calibration_with(&self.sensor)?;
         if let Some(code) = board.current_zero_code {
             s.sense = s.sense.with_current_zero(code)?;
         }
@@ -421,6 +434,8 @@ mod tests {
             "tolerance.spring" => number(&mut a.tolerance.spring),
             "tolerance.friction" => number(&mut a.tolerance.friction),
             "tolerance.resistance" => number(&mut a.tolerance.resistance),
+            "sensor.position_gain" => number(&mut p.sensor.gain),
+            "sensor.position_offset_codes" => number(&mut p.sensor.offset_codes),
             "setpoint.source" => Ok(Field::Source(&mut p.setpoint.source)),
             "setpoint.filter_s" => number(&mut p.setpoint.filter_s),
             "link.timeout_s" => number(&mut p.link.timeout_s),

@@ -24,7 +24,8 @@
 //! | format | layout | read as |
 //! |---|---|---|
 //! | 1 | the actuator, the set point's source and filter | format 2 with the link's default timeout |
-//! | 2 ([`FORMAT`]) | format 1, then the link's timeout and what it does on expiry ([`crate::device::liveness::Settings`]) | itself |
+//! | 2 | format 1, then the link's timeout and what it does on expiry ([`crate::device::liveness::Settings`]) | format 3 with no position correction |
+//! | 3 ([`FORMAT`]) | format 2, then the position sensor's correction from the end stops ([`crate::control::sense::PositionCorrection`]) | itself |
 //!
 //! A change of [`Params`]' encoding without a new format fails a test that pins the
 //! defaults' encoded bytes to the format number.
@@ -58,12 +59,13 @@ use embedded_storage::nor_flash::{
 use sequential_storage::cache::{Cache, Uncached};
 use sequential_storage::map::{MapConfig, MapStorage};
 
+use crate::control::sense::PositionCorrection;
 use crate::device::params::Params;
 use crate::device::protocol::{LoadError, StoreError, CRC};
 
 /// Version of the stored record this firmware writes (see the module documentation for
 /// the earlier ones it reads).
-pub const FORMAT: u16 = 2;
+pub const FORMAT: u16 = 3;
 
 /// Format 1's layout: [`Params`] before the link's timeout.
 #[derive(serde::Deserialize)]
@@ -71,6 +73,15 @@ struct Format1 {
     actuator: crate::control::actuator::Actuator,
     setpoint: crate::device::analog::Settings,
 }
+
+/// Format 2's layout: [`Params`] before the position sensor's correction.
+#[derive(serde::Deserialize)]
+struct Format2 {
+    actuator: crate::control::actuator::Actuator,
+    setpoint: crate::device::analog::Settings,
+    link: crate::device::liveness::Settings,
+}
+
 /// The map key of the parameter set.
 pub const KEY: u8 = 1;
 /// Largest record \[bytes\].
@@ -180,11 +191,21 @@ pub fn decode(record: &[u8]) -> Result<Params, LoadError<'static>> {
             Ok((p, [])) => Ok(p),
             _ => Err(LoadError::Decode),
         },
+        2 => match postcard::take_from_bytes::<Format2>(body) {
+            Ok((old, [])) => Ok(Params {
+                actuator: old.actuator,
+                setpoint: old.setpoint,
+                link: old.link,
+                sensor: PositionCorrection::NONE,
+            }),
+            _ => Err(LoadError::Decode),
+        },
         1 => match postcard::take_from_bytes::<Format1>(body) {
             Ok((old, [])) => Ok(Params {
                 actuator: old.actuator,
                 setpoint: old.setpoint,
                 link: crate::device::liveness::Settings::default(),
+                sensor: PositionCorrection::NONE,
             }),
             _ => Err(LoadError::Decode),
         },
@@ -427,13 +448,13 @@ mod tests {
         }
         // A later format, sealed with its own CRC: refused by version.
         let mut other = rec;
-        other[0] = 3;
+        other[0] = 4;
         let crc = CRC.checksum(&other[..n - 4]).to_le_bytes();
         other[n - 4..n].copy_from_slice(&crc);
         assert_eq!(
             decode(&other[..n]),
             Err(LoadError::Version {
-                found: 3,
+                found: 4,
                 expected: FORMAT
             })
         );
@@ -474,7 +495,40 @@ mod tests {
         let p = decode(&sealed(1, body)).unwrap();
         assert_eq!((p.actuator, p.setpoint), (a, setpoint));
         assert_eq!(p.link, crate::device::liveness::Settings::default());
-        // Format 1's bytes under format 2's number do not decode (they are shorter).
+        assert_eq!(p.sensor, PositionCorrection::NONE);
+        // Format 1's bytes under a later number do not decode (they are shorter).
+        assert_eq!(decode(&sealed(2, body)), Err(LoadError::Decode));
+        assert_eq!(decode(&sealed(FORMAT, body)), Err(LoadError::Decode));
+    }
+
+    #[test]
+    fn a_format_2_set_is_migrated_without_a_position_correction() {
+        #[derive(serde::Serialize)]
+        struct Written {
+            actuator: Actuator,
+            setpoint: crate::device::analog::Settings,
+            link: crate::device::liveness::Settings,
+        }
+        let mut a = Actuator::PRODUCT;
+        a.board.supply_v = 30.0;
+        let link = crate::device::liveness::Settings {
+            timeout_s: 0.25,
+            ..crate::device::liveness::Settings::default()
+        };
+        let mut body = [0u8; MAX_RECORD];
+        let body = postcard::to_slice(
+            &Written {
+                actuator: a,
+                setpoint: crate::device::analog::Settings::default(),
+                link,
+            },
+            &mut body,
+        )
+        .unwrap();
+        let p = decode(&sealed(2, body)).unwrap();
+        assert_eq!((p.actuator, p.link), (a, link));
+        assert_eq!(p.sensor, PositionCorrection::NONE);
+        // Format 2's bytes under format 3's number do not decode (they are shorter).
         assert_eq!(decode(&sealed(FORMAT, body)), Err(LoadError::Decode));
     }
 
@@ -489,7 +543,7 @@ mod tests {
         let crc = u32::from_le_bytes(rec[n - 4..n].try_into().unwrap());
         assert_eq!(
             (FORMAT, n, crc),
-            (2, 139, 0xaaee_6d09),
+            (3, 147, 0xc664_4e8b),
             "the parameters' encoding changed: raise store::FORMAT and migrate the old one \
              (got {n} bytes, CRC {crc:#010x})"
         );

@@ -1,6 +1,6 @@
 use ema::control::bridge::HBridge;
 use ema::device::commission::{Identification, Plan, Step};
-use hil_sim::bench::board::scenario;
+use hil_sim::board::scenario;
 use hil_sim::hal::{self};
 use hil_sim::scenario::Sensors;
 use hil_sim::sim::Stepper;

@@ -84,10 +84,12 @@
 pub mod accuracy;
 pub mod actuator;
 pub mod bench;
+pub mod board;
 pub mod catalog;
 pub mod cli;
 pub mod commissioning;
 pub mod compare;
+pub mod draw;
 pub mod drawn;
 mod error;
 pub mod faults;

@@ -10,56 +10,15 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
 use ema::control::bridge::Mode;
 
+pub use crate::draw::{Draw, SensorDraw};
 use crate::hal::{sensor_position_error_m, Adc, CalibrationClass};
-use crate::metrics::Metrics;
-use crate::plant::Params;
 use crate::scenario::{Scenario, Sensors, TruePlant, Uncertainty};
 use crate::sim::run;
 use crate::targets::worse;
 use crate::Error;
-
-/// One Monte Carlo draw.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Draw {
-    /// Index of the draw, `0..n`.
-    pub index: usize,
-    /// Seed of the plant draw (and of the converter noise, when the scenario has one).
-    pub seed: u64,
-    /// The drawn true plant.
-    pub plant: Params,
-    /// Its metrics.
-    pub metrics: Metrics,
-    /// The bridge coasted at every sample from the first latched fault on (`true` without a
-    /// fault).
-    #[serde(default = "yes")]
-    pub coasting_after_fault: bool,
-    /// The converter errors drawn for this plant, with [`Options::sensor_errors`].
-    #[serde(default)]
-    pub sensor: Option<SensorDraw>,
-}
-
-fn yes() -> bool {
-    true
-}
-
-/// The converter errors of one draw and what they alone do to the position.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SensorDraw {
-    /// The converter with the drawn errors.
-    pub adc: Adc,
-    /// Per segment of the run, the sensor's share of the steady error at the segment's
-    /// reference ([`sensor_position_error_m`]) \[% of the reference\]: what no controller
-    /// acting on this reading can remove.
-    pub steady_error_pct: Vec<f64>,
-    /// Per segment, the overshoot on the true position past the end the sensor's share
-    /// shifts the armature to: the controller's part of the overshoot \[% of the step;
-    /// 0 for a segment without a step\].
-    pub controller_overshoot_pct: Vec<f64>,
-}
 
 /// How the draws are widened beyond the plant uncertainty set.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -116,7 +116,7 @@ pub fn judge(d: &Drawn, plants: usize, plant_seed: u64) -> Result<Verdict, Error
     let act = &d.actuator;
     let name = d.name();
     let own = f64::from(act.board.rate_hz);
-    let rates = crate::cli::tune::default_rates(own);
+    let rates = crate::tune::default_rates(own);
     let rate_min = rates.iter().copied().fold(f64::INFINITY, f64::min);
     let space = Space::for_actuator(act, rate_min)?;
     let started = Instant::now();
@@ -126,7 +126,7 @@ pub fn judge(d: &Drawn, plants: usize, plant_seed: u64) -> Result<Verdict, Error
         &rates,
         &space,
         1,
-        crate::cli::tune::DEFAULT_VALIDATE,
+        crate::tune::DEFAULT_VALIDATE,
     )?;
     let tune_s = started.elapsed().as_secs_f64();
     let scales = act.time_scales().map_err(Error::Actuator)?;

@@ -16,7 +16,7 @@
 //! the next judgement then takes a seed nobody has drawn with.
 
 /// Seed of the plants `tune` validates a candidate on (the first
-/// [`crate::cli::tune::DEFAULT_VALIDATE`] of it).
+/// [`crate::tune::DEFAULT_VALIDATE`] of it).
 pub const TUNE_VALIDATION: u64 = 1;
 
 /// Seed of the drawn actuators the generator's rules, the tuning search and the thresholds

@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use ema::control::actuator::RIPPLE_SHARE;
 
 use crate::metrics::Metrics;
-use crate::montecarlo::Draw;
+use crate::draw::Draw;
 use crate::Scenario;
 
 /// Limits a run must stay within.

@@ -168,7 +168,7 @@ fn drawn_actuators_have_their_stops_found_within_two_codes_below_the_rating() {
     let rated = f64::from(a.coil.rated_current_a);
     let rate = f64::from(a.board.rate_hz);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(ACTUATOR_SEED);
-    let sc = hil_sim::bench::board::scenario(&a, true).unwrap();
+    let sc = hil_sim::board::scenario(&a, true).unwrap();
     let file_plant = sc.plant.resolve(&sc.controller.plant);
     let mut rig = Rig::new(Options {
         noise: true,
@@ -468,7 +468,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     );
     // The inductance at each of the four holds, from the board's probes: within 5 % of the
     // plant's at the hold's position.
-    let sc = hil_sim::bench::board::scenario(&Actuator::PRODUCT, true).unwrap();
+    let sc = hil_sim::board::scenario(&Actuator::PRODUCT, true).unwrap();
     let mut plant = sc.plant.resolve(&sc.controller.plant);
     plant.scale_surfaces(0.85);
     let holds: Vec<(f64, f64)> = printed

@@ -41,7 +41,8 @@ use ema::device::{
 
 use super::flash::{Flash, PAGE, PAGES};
 use crate::hal::{self, Adc, Converter, Lines, Pin, Pwm};
-use crate::scenario::{BridgeMode, Initial, Scenario, Sensors};
+use crate::board::scenario;
+use crate::scenario::{BridgeMode, Scenario, Sensors};
 use crate::sim::Stepper;
 use crate::Error;
 
@@ -190,25 +191,6 @@ pub struct VirtualBoard {
 /// The store's flash range (the chip's two sectors, [`PAGE`] bytes each).
 fn store_range() -> std::ops::Range<u32> {
     0..u32::try_from(PAGE * PAGES).unwrap_or(u32::MAX)
-}
-
-/// The scenario the virtual board runs (see the module documentation): at rest at the
-/// open stop; the reference is the board's, not the scenario's.
-///
-/// # Errors
-/// An actuator whose settings do not derive.
-pub fn scenario(actuator: &Actuator, noise: bool) -> Result<Scenario, Error> {
-    let mut sc = crate::actuator::scenario("virtual-board", actuator)?;
-    sc.sensors = Sensors::Adc(if noise {
-        Adc::typical()
-    } else {
-        Adc {
-            delay_samples: 1,
-            ..Adc::default()
-        }
-    });
-    sc.initial = Initial::default();
-    Ok(sc)
 }
 
 impl VirtualBoard {

@@ -253,7 +253,7 @@ pub fn prediction(
     capture: &Capture,
     noise: bool,
 ) -> Result<(Scenario, Run), Error> {
-    let mut sc = board::scenario(&params.actuator, noise)?;
+    let mut sc = crate::board::scenario(&params.actuator, noise)?;
     let rate = sc.rate_hz();
     let ts = 1.0 / rate;
     let hold_ticks = f64::from(capture.armed_ticks).min((MAX_HOLD_S * rate).round());

@@ -7,7 +7,7 @@ use ema::device::commission::{Abort, Identification, Plan, Report, Step};
 use rand::Rng;
 
 use super::{measured, Mechanics};
-use crate::bench::board::scenario;
+use crate::board::scenario;
 use crate::hal::{self, Adc};
 use crate::plant::Params;
 use crate::scenario::{Scenario, Sensors, TruePlant};

@@ -439,7 +439,7 @@ fn a_backup_restores_every_parameter_on_a_fresh_board() {
     .unwrap();
     let text = std::fs::read_to_string(&file).unwrap();
     assert!(text.contains("on_timeout = \"hold\""), "{text}");
-    let actuator = hil_sim::actuator::parse(&text, "backup").unwrap();
+    let actuator = hil_sim::simulation::actuator::parse(&text, "backup").unwrap();
     assert_eq!(actuator.coil.resistance_ohm, 0.43);
     let backed_up = cli::read_params(&mut old.link).unwrap();
 

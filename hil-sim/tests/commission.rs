@@ -168,7 +168,7 @@ fn drawn_actuators_have_their_stops_found_within_two_codes_below_the_rating() {
     let rated = f64::from(a.coil.rated_current_a);
     let rate = f64::from(a.board.rate_hz);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(ACTUATOR_SEED);
-    let sc = hil_sim::board::scenario(&a, true).unwrap();
+    let sc = hil_sim::simulation::board::scenario(&a, true).unwrap();
     let file_plant = sc.plant.resolve(&sc.controller.plant);
     let mut rig = Rig::new(Options {
         noise: true,
@@ -343,7 +343,7 @@ fn the_commissioned_actuator_file_carries_the_measured_values_and_loads() {
     let got = cli::commission(&mut rig.link, &args, &mut printed).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     std::fs::remove_file(&path).unwrap();
-    let file = hil_sim::actuator::parse(&text, "commissioned").unwrap();
+    let file = hil_sim::simulation::actuator::parse(&text, "commissioned").unwrap();
     assert_eq!(file.coil.resistance_ohm, got.resistance.ohm);
     // Each inductance as measured, or moved by the same factor at most 5 % to keep the
     // iron's reluctance positive (the head says how much).
@@ -402,7 +402,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     let printed = String::from_utf8(printed).unwrap();
     let read = |p: &std::path::Path| {
         let text = std::fs::read_to_string(p).unwrap();
-        hil_sim::actuator::parse(&text, &p.display().to_string()).unwrap()
+        hil_sim::simulation::actuator::parse(&text, &p.display().to_string()).unwrap()
     };
     let measured = read(&path);
     let tuned = read(&dir.join("measured.tuned.toml"));
@@ -459,8 +459,8 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     assert_eq!(board.tolerance, measured.tolerance);
     #[expect(clippy::cast_possible_truncation)]
     let classes = (
-        hil_sim::commissioning::SPRING_CLASS as f32,
-        hil_sim::commissioning::SURFACE_CLASS as f32,
+        hil_sim::identification::commissioning::SPRING_CLASS as f32,
+        hil_sim::identification::commissioning::SURFACE_CLASS as f32,
     );
     assert_eq!(
         (measured.tolerance.spring, measured.tolerance.surface),
@@ -468,7 +468,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     );
     // The inductance at each of the four holds, from the board's probes: within 5 % of the
     // plant's at the hold's position.
-    let sc = hil_sim::board::scenario(&Actuator::PRODUCT, true).unwrap();
+    let sc = hil_sim::simulation::board::scenario(&Actuator::PRODUCT, true).unwrap();
     let mut plant = sc.plant.resolve(&sc.controller.plant);
     plant.scale_surfaces(0.85);
     let holds: Vec<(f64, f64)> = printed
@@ -530,7 +530,7 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
 /// measure the spring within 5 % and the mass within its class, and the file is written.
 #[test]
 fn a_solenoid_far_off_its_file_has_its_measured_whole_set_on_the_board_and_its_armature_measured() {
-    let (_, file) = hil_sim::actuator::load("solenoid-12v").unwrap();
+    let (_, file) = hil_sim::simulation::actuator::load("solenoid-12v").unwrap();
     let mut rig = Rig::new(Options {
         actuator: file,
         noise: true,
@@ -573,10 +573,16 @@ fn a_solenoid_far_off_its_file_has_its_measured_whole_set_on_the_board_and_its_a
     got.unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
-    let measured = hil_sim::actuator::parse(&text, "measured.toml").unwrap();
+    let measured = hil_sim::simulation::actuator::parse(&text, "measured.toml").unwrap();
     let k = f64::from(measured.mechanics.spring_n_per_m) / spring_n_per_m - 1.0;
     let m = f64::from(measured.mechanics.mass_kg) / mass_kg - 1.0;
     eprintln!("spring {:+.2} %, mass {:+.2} %", 100.0 * k, 100.0 * m);
-    assert!(k.abs() < hil_sim::commissioning::SPRING_CLASS, "{k}");
-    assert!(m.abs() < hil_sim::commissioning::MASS_CLASS, "{m}");
+    assert!(
+        k.abs() < hil_sim::identification::commissioning::SPRING_CLASS,
+        "{k}"
+    );
+    assert!(
+        m.abs() < hil_sim::identification::commissioning::MASS_CLASS,
+        "{m}"
+    );
 }

@@ -1,7 +1,7 @@
 //! The virtual board: the firmware's own application ([`ema::device`]: the same
 //! [`Controller`] in the "interrupt", the same [`Dispatcher`] in the "main loop", the same
 //! queues, the same [`device::boot`] and store on a simulated flash) on the simulated
-//! plant, converter and bridge of [`crate::sim`], one period at a time.
+//! plant, converter and bridge of [`crate::simulation::sim`], one period at a time.
 //!
 //! What the firmware does with hardware, the virtual board does here:
 //!
@@ -15,7 +15,7 @@
 //! | the measured current-sensor zero | the nominal zero |
 //!
 //! The plant, the sensors and the supply are the actuator's judging scenario
-//! ([`crate::actuator::scenario`]: nominal plant, supply resistance `R/8`, averaged bridge)
+//! ([`crate::simulation::actuator::scenario`]: nominal plant, supply resistance `R/8`, averaged bridge)
 //! with a deterministic converter by default (12 bits, one sample of delay, no noise): a
 //! capture then equals, bit for bit, the simulator's run of the same scenario
 //! ([`super::prediction`]), which the end-to-end tests check. `noise` adds the typical
@@ -40,10 +40,10 @@ use ema::device::{
 };
 
 use super::flash::{Flash, PAGE, PAGES};
-use crate::hal::{self, Adc, Converter, Lines, Pin, Pwm};
-use crate::board::scenario;
-use crate::scenario::{BridgeMode, Scenario, Sensors};
-use crate::sim::Stepper;
+use crate::simulation::board::scenario;
+use crate::simulation::hal::{self, Adc, Converter, Lines, Pin, Pwm};
+use crate::simulation::scenario::{BridgeMode, Scenario, Sensors};
+use crate::simulation::sim::Stepper;
 use crate::Error;
 
 /// How the virtual board is made.
@@ -401,7 +401,7 @@ impl VirtualBoard {
 
     /// The plant as the file describes it, before any injection.
     #[must_use]
-    pub fn file_plant(&self) -> crate::plant::Params {
+    pub fn file_plant(&self) -> crate::simulation::plant::Params {
         self.scenario.plant.resolve(&self.scenario.controller.plant)
     }
 

@@ -4,7 +4,7 @@
 //! The messages, the framing and the board's application are the core's
 //! ([`ema::device::protocol`], [`ema::device`]): the host tool, the virtual board and the
 //! firmware share one definition. A capture is judged with the simulator's own metrics
-//! ([`crate::metrics`]) against the simulator's prediction for the board's parameters
+//! ([`crate::simulation::metrics`]) against the simulator's prediction for the board's parameters
 //! ([`prediction`]).
 //!
 //! ## Operate a board
@@ -69,9 +69,9 @@ use ema::control::supervisor::Fault;
 use ema::device::params::Params;
 use ema::device::protocol::{Chunk, Invalid, LoadError, Reason, Refusal, Sample, Source};
 
-use crate::metrics::{self, Metrics};
-use crate::scenario::{Initial, Reference};
-use crate::sim::{self, Run};
+use crate::simulation::metrics::{self, Metrics};
+use crate::simulation::scenario::{Initial, Reference};
+use crate::simulation::sim::{self, Run};
 use crate::{Error, Scenario};
 
 /// A fault code by name (`over_current (code 6)`), or the bare code if unknown.
@@ -253,7 +253,7 @@ pub fn prediction(
     capture: &Capture,
     noise: bool,
 ) -> Result<(Scenario, Run), Error> {
-    let mut sc = crate::board::scenario(&params.actuator, noise)?;
+    let mut sc = crate::simulation::board::scenario(&params.actuator, noise)?;
     let rate = sc.rate_hz();
     let ts = 1.0 / rate;
     let hold_ticks = f64::from(capture.armed_ticks).min((MAX_HOLD_S * rate).round());
@@ -363,7 +363,7 @@ pub fn capture_metrics(scenario: &Scenario, capture: &Capture) -> Metrics {
     };
     let trace = capture_trace(capture, at_s, scenario.rate_hz());
     // A capture says nothing about the plant's bounds; the field is not reported.
-    let bounds = crate::metrics::BoundsCheck {
+    let bounds = crate::simulation::metrics::BoundsCheck {
         mu_lo_ratio_min: f64::NAN,
         mu_lo_worst_x_m: f64::NAN,
         mu_hi_ratio_max: f64::NAN,

@@ -7,7 +7,7 @@
 //! per plant (the sensor's share of the steady error apart), the draws beyond the
 //! controller's tolerances sorted into pass, named fault and silent failure, and drawn
 //! actuators tuned and judged out of sample. No table is measured on draws that chose a
-//! gain, a rule or a constant ([`crate::seeds`]).
+//! gain, a rule or a constant ([`crate::analysis::seeds`]).
 //!
 //! `--check` runs the same and compares with the file, failing on the first line that
 //! differs: CI runs it, so a change that moves a figure must also regenerate the file.
@@ -19,8 +19,8 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use super::{compare, drawn, faults, montecarlo, paper, Output};
-use crate::actuator;
-use crate::report::{sig, Table};
+use crate::analysis::report::{sig, Table};
+use crate::simulation::actuator;
 
 /// The file the results are written to, in the `hil-sim` crate.
 pub const RESULTS_MD: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/RESULTS.md");
@@ -39,7 +39,7 @@ pub struct Args {
     pub n: usize,
     /// Seed of the plants and instants drawn (default: one no gain, rule or constant was
     /// chosen on; see `hil_sim::seeds`).
-    #[arg(long, default_value_t = crate::seeds::RESULTS)]
+    #[arg(long, default_value_t = crate::analysis::seeds::RESULTS)]
     pub seed: u64,
     /// Plants drawn per member and spread factor beyond the controller's tolerances.
     #[arg(long, default_value_t = 200)]
@@ -67,7 +67,7 @@ impl Default for Args {
         Self {
             check: false,
             n: 1000,
-            seed: crate::seeds::RESULTS,
+            seed: crate::analysis::seeds::RESULTS,
             n_beyond: 200,
             n_random: 200,
             n_drawn: 20,
@@ -293,7 +293,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
          microseconds; a case passes when the expected fault is named within {} us, the \
          current stays at or below the trip level and the bridge coasts from then on \
          (`hil-sim/src/faults.rs`).\n",
-        sig(crate::faults::DEADLINE_S * 1e6, 4)
+        sig(crate::analysis::faults::DEADLINE_S * 1e6, 4)
     )?;
     let mut cases: Vec<(String, Vec<String>)> = Vec::new();
     let mut header = vec!["fault injected".to_owned(), "expected".to_owned()];
@@ -437,7 +437,7 @@ fn scratch(args: &Args, sub: &str) -> Output {
 
 /// The section on converter errors.
 fn sensor_errors(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
-    let class = crate::hal::CalibrationClass::default();
+    let class = crate::simulation::hal::CalibrationClass::default();
     writeln!(
         w,
         "## Converter errors (`hil-sim montecarlo <name> --n {n} --seed {seed} \
@@ -491,8 +491,8 @@ fn sensor_errors(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Re
                 .map_or_else(|| "-".into(), |r| format!("{} ({})", r[2], r[1]))
         };
         let (_, act) = actuator::load(e.name)?;
-        let steady = crate::targets::STEADY_ERROR_PCT;
-        let overshoot = crate::targets::OVERSHOOT_PCT;
+        let steady = crate::simulation::targets::STEADY_ERROR_PCT;
+        let overshoot = crate::simulation::targets::OVERSHOOT_PCT;
         t.push([
             e.name.to_owned(),
             sig(f64::from(act.board.rate_hz) / 1e3, 3),
@@ -541,8 +541,8 @@ fn random_faults(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Re
          misnamed, none latches before its injection, the bridge coasts after every \
          detection and the current stays at or below the trip \
          (`hil_sim::faults::Spread::misses`).\n",
-        named = sig(crate::faults::NAMED_SHARE * 100.0, 3),
-        misnamed = sig(crate::faults::MISNAMED_SHARE * 100.0, 3),
+        named = sig(crate::analysis::faults::NAMED_SHARE * 100.0, 3),
+        misnamed = sig(crate::analysis::faults::MISNAMED_SHARE * 100.0, 3),
         n = args.n_random,
         seed = args.seed,
     )?;
@@ -570,7 +570,7 @@ fn random_faults(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Re
 
 /// The section on drawn actuators, judged out of sample.
 fn drawn_actuators(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
-    let seed = crate::seeds::DRAWN_JUDGE;
+    let seed = crate::analysis::seeds::DRAWN_JUDGE;
     writeln!(
         w,
         "## Drawn actuators, out of sample (`hil-sim drawn --n {n} --seed {seed} --plants \
@@ -589,7 +589,7 @@ fn drawn_actuators(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::
         n = args.n_drawn,
         plants = args.drawn_plants,
         plant_seed = args.seed,
-        share = sig(crate::outofsample::MISS_SHARE * 100.0, 2),
+        share = sig(crate::analysis::outofsample::MISS_SHARE * 100.0, 2),
     )?;
     writeln!(
         out,

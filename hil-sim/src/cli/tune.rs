@@ -1,5 +1,5 @@
 //! `hil-sim tune <actuator>`: designs the practical law's gains for an actuator
-//! ([`crate::tune`]): a search space from its time scales, Theorem 1 for every candidate,
+//! ([`crate::analysis::tune`]): a search space from its time scales, Theorem 1 for every candidate,
 //! screening on the nominal plant, the corner plants of the uncertainty set at three
 //! interrupt rates, the minimax choice and a Monte Carlo validation. Writes the tuned
 //! actuator file (the input with a `[tuning]` section) and every candidate as CSV; when no
@@ -9,11 +9,11 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::actuator;
-use crate::report::{self, sig, Table};
-use crate::tune::{self, Space};
+use crate::analysis::report::{self, sig, Table};
+use crate::analysis::tune::{self, Space};
+use crate::simulation::actuator;
 
-pub use crate::tune::{default_rates, BOARD_RATES_HZ, DEFAULT_VALIDATE};
+pub use crate::analysis::tune::{default_rates, BOARD_RATES_HZ, DEFAULT_VALIDATE};
 
 /// Arguments of `tune`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]

@@ -9,9 +9,9 @@ use anyhow::{anyhow, bail};
 use ema::device::protocol::{CaptureState, Command, Message, Reply, Trigger, CHUNK_SAMPLES};
 
 use super::{read_params, status, CaptureArgs};
+use crate::analysis::report::{self, sig, Figure, Panel, Series, Table};
 use crate::bench::link::{Link, Port};
 use crate::bench::Capture;
-use crate::report::{self, sig, Figure, Panel, Series, Table};
 
 /// What `capture` measured and wrote.
 #[derive(Clone, Debug)]
@@ -122,7 +122,7 @@ pub fn capture<P: Port>(
     let board = crate::bench::capture_metrics(&sc, &capture);
     let simulator = crate::bench::prediction_metrics(&sc, &run, &capture);
     let at_s = match sc.reference {
-        crate::scenario::Reference::Step { at_s, .. } => at_s,
+        crate::simulation::scenario::Reference::Step { at_s, .. } => at_s,
         _ => 0.0,
     };
     let predicted = crate::bench::prediction_samples(&run, &capture, at_s, rate);

@@ -11,9 +11,9 @@ use ema::device::protocol::{Command, Commissioned, Message, Reply, Value};
 use super::{
     actuator_file, apply_commissioned, measure_mechanics, read_params, status, CommissionArgs,
 };
+use crate::analysis::report::{self};
 use crate::bench::fault_name;
 use crate::bench::link::{Link, Port};
-use crate::report::{self};
 
 /// Runs a commissioning and waits for its outcome; prints it, and with `apply` sets the
 /// measured resistance (the end stops are reported, not yet applied).
@@ -119,7 +119,7 @@ pub fn commission<P: Port>(
             bail!("--tune needs --out FILE: the commissioned file is what is tuned")
         };
         writeln!(out)?;
-        let stem = crate::actuator::stem(path);
+        let stem = crate::simulation::actuator::stem(path);
         let beside = |name: String| crate::cli::Output {
             out: Some(path.with_file_name(name)),
         };
@@ -149,7 +149,7 @@ pub fn commission<P: Port>(
         )?;
         if args.apply {
             // The tuned file: the measured actuator with the tuning chosen.
-            let tuned = crate::actuator::parse(
+            let tuned = crate::simulation::actuator::parse(
                 &std::fs::read_to_string(&tuned_path)?,
                 &tuned_path.display().to_string(),
             )?;

@@ -9,9 +9,9 @@ use ema::device::commission::Report;
 use ema::device::protocol::{Command, Value};
 
 use super::{save, set_all, value_text};
+use crate::analysis::report::sig;
 use crate::bench::link::{Link, Port};
-use crate::commissioning::Mechanics;
-use crate::report::sig;
+use crate::identification::commissioning::Mechanics;
 
 /// The parameters that carry a commissioned actuator `measured` on a board whose file is
 /// `board`: the resistance, the spring and its preload, the mass and the friction, the
@@ -83,7 +83,7 @@ pub fn commissioned_params(
                  holds measured (--mechanics), whose fit gives the spread"
             );
             // The measured line in the board's form.
-            let line = crate::commissioning::Circuit::line(
+            let line = crate::identification::commissioning::Circuit::line(
                 f64::from(open_h),
                 f64::from(closed_h),
                 measured,
@@ -161,7 +161,7 @@ pub(super) fn apply_commissioned<P: Port>(
 }
 
 /// The actuator file a commissioning gives: the measured actuator
-/// ([`crate::commissioning::measured`], with the `mechanics` when measured), each measured
+/// ([`crate::identification::commissioning::measured`], with the `mechanics` when measured), each measured
 /// value and its uncertainty, and the end stops, in comments at its head.
 ///
 /// # Errors
@@ -175,7 +175,7 @@ pub fn actuator_file(
     let r = report.resistance;
     let l = report.inductance;
     let e = report.ends;
-    let (a, moved) = crate::commissioning::measured(file, report, mechanics)?;
+    let (a, moved) = crate::identification::commissioning::measured(file, report, mechanics)?;
     let spring_head = mechanics.map_or(String::new(), |m| {
         let s = m.spring;
         let armature = m.armature.map_or(

@@ -10,22 +10,22 @@ use ema::device::commission::Report;
 use ema::device::protocol::{Command, Trigger};
 
 use super::{capture_move, commissioned_sets, read_capture, set_all, status};
+use crate::analysis::report::sig;
 use crate::bench::link::{Link, Port};
 use crate::bench::{fault_name, Capture};
-use crate::commissioning::{HoldInductance, Holds, Mechanics};
-use crate::report::sig;
+use crate::identification::commissioning::{HoldInductance, Holds, Mechanics};
 
 /// Measures the magnetic circuit between the stops, the spring, the mass and the friction
-/// on the board ([`crate::commissioning::Circuit::fit`],
-/// [`crate::commissioning::fit_spring`], [`crate::commissioning::fit_armature`]): sets
+/// on the board ([`crate::identification::commissioning::Circuit::fit`],
+/// [`crate::identification::commissioning::fit_spring`], [`crate::identification::commissioning::fit_armature`]): sets
 /// the actuator `report` measured on the board's `file` with the default tuning (not
-/// stored), arms, moves to each position of [`crate::actuator::SEQUENCE`] and holds it as
+/// stored), arms, moves to each position of [`crate::simulation::actuator::SEQUENCE`] and holds it as
 /// the evaluation sequence does, capturing the move, then the hold's window at the
-/// [`crate::commissioning::decimations`], then the hold's inductance probes at every
+/// [`crate::identification::commissioning::decimations`], then the hold's inductance probes at every
 /// tick; disarms and puts the parameters in use before back (the stored set, or the
 /// built-in defaults). A fault during the holds ends the attempt, named: the holds run
-/// again, cleared, with a slower loop ([`crate::commissioning::hold_tuning`]), up to
-/// [`crate::commissioning::HOLD_ATTEMPTS`] in all.
+/// again, cleared, with a slower loop ([`crate::identification::commissioning::hold_tuning`]), up to
+/// [`crate::identification::commissioning::HOLD_ATTEMPTS`] in all.
 ///
 /// # Errors
 /// A refusal, no reply, a fault during the last attempt at the holds, a capture that
@@ -50,9 +50,9 @@ pub(super) fn measure_mechanics<P: Port>(
     let (holds, probes) = held?;
     disarmed?;
     loaded?;
-    let line = crate::commissioning::Circuit::through_stops(report, &plan.m);
+    let line = crate::identification::commissioning::Circuit::through_stops(report, &plan.m);
     let inductances = probes.each_ref().map(|runs| {
-        crate::commissioning::hold_inductance(
+        crate::identification::commissioning::hold_inductance(
             runs,
             &plan.probe,
             plan.delay,
@@ -67,9 +67,10 @@ pub(super) fn measure_mechanics<P: Port>(
     Ok(mechanics)
 }
 
-/// Each hold's inductance probes: per position of [`crate::actuator::SEQUENCE`], the
+/// Each hold's inductance probes: per position of [`crate::simulation::actuator::SEQUENCE`], the
 /// samples of each probe.
-type Probes = [Vec<Vec<crate::commissioning::ProbeSample>>; crate::actuator::SEQUENCE.len()];
+type Probes = [Vec<Vec<crate::identification::commissioning::ProbeSample>>;
+    crate::simulation::actuator::SEQUENCE.len()];
 
 /// How [`measure_mechanics`] captures the holds: the measured actuator with the default
 /// tuning and what follows from it.
@@ -91,7 +92,7 @@ struct HoldPlan {
     /// A window's captured samples.
     window_samples: u16,
     /// The inductance probe at each hold.
-    probe: crate::scenario::InductanceProbe,
+    probe: crate::simulation::scenario::InductanceProbe,
     /// The loop's delay \[ticks\].
     delay: usize,
     /// A probe's captured samples, one a tick.
@@ -104,24 +105,28 @@ impl HoldPlan {
     /// # Errors
     /// The measured actuator does not make settings.
     fn new(file: &Actuator, report: &Report) -> anyhow::Result<Self> {
-        let (m, _) = crate::commissioning::measured(file, report, None)?;
+        let (m, _) = crate::identification::commissioning::measured(file, report, None)?;
         let settings = m.settings().map_err(|e| anyhow!("{e}"))?;
         let stroke_m = f64::from(m.mechanics.stroke_m);
         let rate_hz = f64::from(m.board.rate_hz);
-        let hold_s = crate::actuator::segment_s(&settings, stroke_m);
+        let hold_s = crate::simulation::actuator::segment_s(&settings, stroke_m);
         let capacity = u16::try_from(ema::device::CAPTURE_CAPACITY).unwrap_or(u16::MAX);
         let (move_decimation, window_decimation) =
-            crate::commissioning::decimations(&settings, stroke_m, rate_hz);
+            crate::identification::commissioning::decimations(&settings, stroke_m, rate_hz);
         #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let window_samples = ((crate::commissioning::HOLD_WINDOW_SHARE * hold_s * rate_hz
-            / f64::from(window_decimation))
-        .round()
-        .clamp(1.0, f64::from(capacity))) as u16;
-        let probe = crate::commissioning::hold_probe(&m);
+        let window_samples =
+            ((crate::identification::commissioning::HOLD_WINDOW_SHARE * hold_s * rate_hz
+                / f64::from(window_decimation))
+            .round()
+            .clamp(1.0, f64::from(capacity))) as u16;
+        let probe = crate::identification::commissioning::hold_probe(&m);
         let delay = usize::from(settings.delay_ticks);
-        let span = u16::try_from(crate::commissioning::probe_capture(probe.ticks(), delay))
-            .unwrap_or(u16::MAX)
-            .min(capacity);
+        let span = u16::try_from(crate::identification::commissioning::probe_capture(
+            probe.ticks(),
+            delay,
+        ))
+        .unwrap_or(u16::MAX)
+        .min(capacity);
         Ok(Self {
             m,
             stroke_m,
@@ -146,12 +151,12 @@ impl HoldPlan {
             out,
             "spring, mass and friction: the loop closed with the measured coil and circuit, default tuning; holds of {} s at {}",
             sig(self.hold_s, 3),
-            crate::actuator::SEQUENCE.map(|f| format!("{} mm", sig(f * self.stroke_m * 1e3, 3))).join(", ")
+            crate::simulation::actuator::SEQUENCE.map(|f| format!("{} mm", sig(f * self.stroke_m * 1e3, 3))).join(", ")
         )?;
         writeln!(
             out,
             "inductance: {} probes at the end of each hold, +-{} A about the hold's current, {} cycles of {} ticks at each level",
-            crate::commissioning::HOLD_PROBE_RUNS,
+            crate::identification::commissioning::HOLD_PROBE_RUNS,
             sig(self.probe.amplitude_a, 3),
             self.probe.cycles,
             self.probe.half_ticks
@@ -161,8 +166,8 @@ impl HoldPlan {
 }
 
 /// Runs the holds of `plan` until they end without a monitor's fault or
-/// [`crate::commissioning::HOLD_ATTEMPTS`] have run: after a fault, cleared, again with
-/// a slower loop ([`crate::commissioning::hold_tuning`]). The inner result is the last
+/// [`crate::identification::commissioning::HOLD_ATTEMPTS`] have run: after a fault, cleared, again with
+/// a slower loop ([`crate::identification::commissioning::hold_tuning`]). The inner result is the last
 /// attempt's; the board is left armed or not as it ended.
 ///
 /// # Errors
@@ -176,7 +181,7 @@ fn hold_with_retries<P: Port>(
 ) -> anyhow::Result<anyhow::Result<(Holds, Probes)>> {
     let mut attempt = 0;
     loop {
-        let tuning = crate::commissioning::hold_tuning(&plan.m, attempt)?;
+        let tuning = crate::identification::commissioning::hold_tuning(&plan.m, attempt)?;
         let sets = commissioned_sets(file, &plan.m, &tuning)?;
         let held = run_holds(link, plan, &sets, report);
         // A monitor that ended the holds: again with a slower loop, while attempts are left.
@@ -186,10 +191,10 @@ fn hold_with_retries<P: Port>(
             .and_then(|e| e.downcast_ref::<HoldsFault>())
             .map(|f| f.0.clone());
         match ended {
-            Some(fault) if attempt + 1 < crate::commissioning::HOLD_ATTEMPTS => {
+            Some(fault) if attempt + 1 < crate::identification::commissioning::HOLD_ATTEMPTS => {
                 link.done(Command::Clear)?;
                 attempt += 1;
-                let slower = crate::commissioning::hold_tuning(&plan.m, attempt)?;
+                let slower = crate::identification::commissioning::hold_tuning(&plan.m, attempt)?;
                 writeln!(
                     out,
                     "  the holds ended by the fault {fault}: again with a slower loop (alpha {} 1/s, observer {} rad/s)",
@@ -203,7 +208,7 @@ fn hold_with_retries<P: Port>(
 }
 
 /// One attempt at the holds: sets `sets`, waits for the armature at the open stop, arms,
-/// and at each position of [`crate::actuator::SEQUENCE`] captures the move, the hold's
+/// and at each position of [`crate::simulation::actuator::SEQUENCE`] captures the move, the hold's
 /// window and its inductance probes.
 ///
 /// # Errors
@@ -230,7 +235,10 @@ fn run_holds<P: Port>(
         ..Holds::default()
     };
     let mut probes = Probes::default();
-    for (k, f) in crate::actuator::SEQUENCE.into_iter().enumerate() {
+    for (k, f) in crate::simulation::actuator::SEQUENCE
+        .into_iter()
+        .enumerate()
+    {
         #[expect(clippy::cast_possible_truncation)]
         let c = capture_move(
             link,
@@ -250,7 +258,7 @@ fn run_holds<P: Port>(
         )?;
         holds.windows[k] = readings(&c)?;
         // The inductance at the hold: each probe captured at every tick from its first.
-        for _ in 0..crate::commissioning::HOLD_PROBE_RUNS {
+        for _ in 0..crate::identification::commissioning::HOLD_PROBE_RUNS {
             link.done(Command::Capture {
                 samples: plan.span,
                 decimation: 1,
@@ -263,7 +271,7 @@ fn run_holds<P: Port>(
             probes[k].push(
                 c.samples
                     .iter()
-                    .map(|s| crate::commissioning::ProbeSample {
+                    .map(|s| crate::identification::commissioning::ProbeSample {
                         y_m: f64::from(s.x_m),
                         u_v: f64::from(s.u_v),
                         i_a: f64::from(s.i_a),
@@ -322,7 +330,10 @@ fn print_inductances(
     stroke_m: f64,
     inductances: &[Option<HoldInductance>],
 ) -> anyhow::Result<()> {
-    for (f, l) in crate::actuator::SEQUENCE.iter().zip(inductances) {
+    for (f, l) in crate::simulation::actuator::SEQUENCE
+        .iter()
+        .zip(inductances)
+    {
         let line = match l {
             Some(h) => format!(
                 "{} uH +- {} at {} mm",
@@ -334,7 +345,7 @@ fn print_inductances(
                 "not read at the hold at {} mm (the current did not step, or the probes \
                  spread above {} %)",
                 sig(f * stroke_m * 1e3, 3),
-                100.0 * crate::commissioning::HOLD_PROBE_MAX_SPREAD
+                100.0 * crate::identification::commissioning::HOLD_PROBE_MAX_SPREAD
             ),
         };
         writeln!(out, "  inductance {line}")?;

@@ -26,7 +26,7 @@ use ema::device::protocol::Command;
 use serialport::SerialPort;
 
 use super::link::{Link, Port};
-use crate::report::Table;
+use crate::analysis::report::Table;
 
 mod capture;
 mod commission;

@@ -94,7 +94,7 @@ pub fn backup_text(p: &Params) -> anyhow::Result<String> {
          # own [setpoint] and [link]. `bench restore` sets them all and saves.\n\n{}",
         toml::to_string(&p.actuator)?
     );
-    for table in crate::actuator::BOARD_TABLES {
+    for table in crate::simulation::actuator::BOARD_TABLES {
         text.push_str(&format!("\n[{table}]\n"));
         for info in params::all().filter(|i| i.name.starts_with(table)) {
             let key = &info.name[table.len() + 1..];
@@ -120,8 +120,8 @@ pub fn backup_text(p: &Params) -> anyhow::Result<String> {
 /// TOML that does not parse, an unknown or mistyped field (named), a value refused.
 pub fn parse_backup(text: &str, origin: &str) -> anyhow::Result<Params> {
     let mut table: toml::Table = toml::from_str(text).with_context(|| origin.to_owned())?;
-    let actuator = crate::actuator::parse(text, origin)?;
-    let board_tables: Vec<(&str, Option<toml::Value>)> = crate::actuator::BOARD_TABLES
+    let actuator = crate::simulation::actuator::parse(text, origin)?;
+    let board_tables: Vec<(&str, Option<toml::Value>)> = crate::simulation::actuator::BOARD_TABLES
         .into_iter()
         .map(|t| (t, table.remove(t)))
         .collect();

@@ -3,9 +3,9 @@
 use anyhow::anyhow;
 use ema::device::protocol::{Build, CaptureState, Command, Message, Reply, Status};
 
+use crate::analysis::report::{sig, Table};
 use crate::bench::fault_name;
 use crate::bench::link::{Link, Port};
-use crate::report::{sig, Table};
 
 /// The board's status.
 ///

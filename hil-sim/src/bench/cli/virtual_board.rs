@@ -78,7 +78,7 @@ fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
 
 pub(super) fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let actuator = match &a.actuator {
-        Some(name) => crate::actuator::load(name)?.1,
+        Some(name) => crate::simulation::actuator::load(name)?.1,
         None => Actuator::PRODUCT,
     };
     // As fast as it can, the board's ticks outrun a host's heartbeat paced in real time:

@@ -7,9 +7,9 @@ use anyhow::anyhow;
 use ema::device::protocol::{Command, Mode, Signal};
 
 use super::WatchArgs;
+use crate::analysis::report::sig;
 use crate::bench::fault_name;
 use crate::bench::link::{Link, Port};
-use crate::report::sig;
 
 pub(super) fn signal_mask(names: &[String]) -> anyhow::Result<(u16, Vec<Signal>)> {
     let mut mask = 0;

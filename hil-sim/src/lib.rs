@@ -77,7 +77,6 @@
 //! | [`analysis::report`] | tables, decimated sample CSV files, PNG plots |
 //! | [`identification::commissioning`] | the identification fits of the board's commissioning routine |
 //! | [`cli`] | the `hil-sim` command line, one module per subcommand |
-//! | [`mod@bench`] | a board on a bench: the `bench` tool, its link, the virtual board |
 //!
 //! ## Glossary
 //!
@@ -101,7 +100,6 @@
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 pub mod analysis;
-pub mod bench;
 pub mod cli;
 pub mod identification;
 pub mod simulation;

@@ -39,7 +39,7 @@
 //! random stream ([`crate::analysis::montecarlo::draw_seed`] of both).
 //!
 //! ```
-//! let drawn = hil_sim::drawn::draw(3, 7).unwrap();
+//! let drawn = hil_sim::analysis::drawn::draw(3, 7).unwrap();
 //! assert_eq!(drawn.len(), 3);
 //! for d in &drawn {
 //!     // Every drawn actuator meets the rules and builds its settings.
@@ -47,7 +47,7 @@
 //!     d.actuator.settings().unwrap();
 //! }
 //! // The same actuator, whatever the number drawn.
-//! assert_eq!(hil_sim::drawn::draw(1, 7).unwrap()[0], drawn[0]);
+//! assert_eq!(hil_sim::analysis::drawn::draw(1, 7).unwrap()[0], drawn[0]);
 //! ```
 
 use std::collections::BTreeMap;
@@ -185,7 +185,7 @@ impl Drawn {
         let body = toml::to_string(a)?;
         Ok(format!(
             "# Drawn actuator {} of seed {} ({}): {} g, {} mm, {} N/m, {} V, {} kHz.\n\
-             # Written by `hil-sim actuators --draw`; the ranges and rules: hil_sim::drawn.\n\n{body}",
+             # Written by `hil-sim actuators --draw`; the ranges and rules: hil_sim::analysis::drawn.\n\n{body}",
             self.index,
             self.seed,
             self.circuit,

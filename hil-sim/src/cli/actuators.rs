@@ -105,7 +105,7 @@ pub fn draw(n: usize, seed: u64, dir: &std::path::Path, out: &mut dyn Write) -> 
     writeln!(
         out,
         "{n} actuators drawn with seed {seed}, written to {} (the ranges and rules: \
-         hil_sim::drawn):",
+         hil_sim::analysis::drawn):",
         dir.display()
     )?;
     write!(out, "{}", t.to_text())?;

@@ -15,9 +15,9 @@
 //! ([`tuned_text`]); the firmware build takes either (`EMA_ACTUATOR=path cargo fw`).
 //!
 //! ```
-//! let (name, act) = hil_sim::actuator::load("valve").unwrap();
+//! let (name, act) = hil_sim::simulation::actuator::load("valve").unwrap();
 //! assert_eq!(name, "valve");
-//! let sc = hil_sim::actuator::scenario(&name, &act).unwrap();
+//! let sc = hil_sim::simulation::actuator::scenario(&name, &act).unwrap();
 //! // Four positions at 1/8, 7/8, 3/8 and 3/4 of the 1.5 mm stroke.
 //! assert_eq!(sc.reference.segments(sc.duration_s).len(), 3);
 //! ```

@@ -13,9 +13,9 @@
 //!   fields relative to `controller`).
 //!
 //! ```
-//! let sc = hil_sim::catalog::load("paper-20khz").unwrap();
+//! let sc = hil_sim::simulation::catalog::load("paper-20khz").unwrap();
 //! assert_eq!(sc.rate_hz(), 20_000.0);
-//! let bad = hil_sim::catalog::parse("duration_s = -1.0", "inline");
+//! let bad = hil_sim::simulation::catalog::parse("duration_s = -1.0", "inline");
 //! assert!(bad.is_err());
 //! ```
 

@@ -252,7 +252,7 @@ impl Metrics {
 }
 
 /// Computes the metrics of a trace.
-pub(crate) fn compute(
+pub fn compute(
     scenario: &Scenario,
     bounds: BoundsCheck,
     trace: &[Sample],

@@ -14,7 +14,7 @@
 //!   (`assets/`), so no system font library is needed.
 //!
 //! ```no_run
-//! use hil_sim::report::{self, Figure, Panel, Series};
+//! use hil_sim::analysis::report::{self, Figure, Panel, Series};
 //! use hil_sim::{run, Scenario};
 //!
 //! let r = run(&Scenario::paper(20_000.0).with_current_trip_a(100.0))?;

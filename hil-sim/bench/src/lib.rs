@@ -1,11 +1,23 @@
-//! A board on a bench: the host tool (`bench`, [`cli`]), its link ([`link`]), and the
-//! virtual board it is tested against ([`board`], on a simulated flash, [`flash`]).
+//! # bench: a board on a bench, and the virtual board
+//!
+//! The host tool for a board running the `ema` firmware (the `bench` binary of this
+//! package, [`cli`]), its serial link ([`link`]), and the virtual board it is tested
+//! against ([`board`], on a simulated flash, [`flash`]).
+//!
+//! The virtual board is the firmware's own application ([`ema::device`]: the same state
+//! machine, commands, parameter store and tick) run against the simulated actuator of
+//! `hil-sim` ([`hil_sim::simulation`]) on a pseudo-terminal, so that the tool is exercised
+//! through its real serial path without a board.
 //!
 //! The messages, the framing and the board's application are the core's
 //! ([`ema::device::protocol`], [`ema::device`]): the host tool, the virtual board and the
 //! firmware share one definition. A capture is judged with the simulator's own metrics
-//! ([`crate::simulation::metrics`]) against the simulator's prediction for the board's parameters
-//! ([`prediction`]).
+//! ([`hil_sim::simulation::metrics`]) against the simulator's prediction for the board's
+//! parameters ([`prediction`]); `commission` fits what it measures with `hil-sim`'s
+//! identification library ([`hil_sim::identification::commissioning`]) and tunes it with
+//! `hil-sim tune`.
+//!
+//! This package depends on `hil-sim`; nothing in `hil-sim` depends on it.
 //!
 //! ## Operate a board
 //!
@@ -16,7 +28,7 @@
 //! its real serial path.
 //!
 //! ```text
-//! cargo build --release -p hil-sim --bin bench
+//! cargo build --release -p bench
 //! B=target/release/bench
 //! $B virtual --link /tmp/ema-board &        # prints the pseudo-terminal; stdin: injections
 //! export EMA_PORT=/tmp/ema-board
@@ -60,6 +72,10 @@
 //! new set), `tests/frames.rs` (a million random and mutated frames; a noisy line at the
 //! link's rate).
 
+#![deny(missing_docs)]
+#![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
 pub mod board;
 pub mod cli;
 pub mod flash;
@@ -68,11 +84,10 @@ pub mod link;
 use ema::control::supervisor::Fault;
 use ema::device::params::Params;
 use ema::device::protocol::{Chunk, Invalid, LoadError, Reason, Refusal, Sample, Source};
-
-use crate::simulation::metrics::{self, Metrics};
-use crate::simulation::scenario::{Initial, Reference};
-use crate::simulation::sim::{self, Run};
-use crate::{Error, Scenario};
+use hil_sim::simulation::metrics::{self, Metrics};
+use hil_sim::simulation::scenario::{Initial, Reference};
+use hil_sim::simulation::sim::{self, Run};
+use hil_sim::{Error, Scenario};
 
 /// A fault code by name (`over_current (code 6)`), or the bare code if unknown.
 #[must_use]
@@ -253,7 +268,7 @@ pub fn prediction(
     capture: &Capture,
     noise: bool,
 ) -> Result<(Scenario, Run), Error> {
-    let mut sc = crate::simulation::board::scenario(&params.actuator, noise)?;
+    let mut sc = hil_sim::simulation::board::scenario(&params.actuator, noise)?;
     let rate = sc.rate_hz();
     let ts = 1.0 / rate;
     let hold_ticks = f64::from(capture.armed_ticks).min((MAX_HOLD_S * rate).round());
@@ -363,7 +378,7 @@ pub fn capture_metrics(scenario: &Scenario, capture: &Capture) -> Metrics {
     };
     let trace = capture_trace(capture, at_s, scenario.rate_hz());
     // A capture says nothing about the plant's bounds; the field is not reported.
-    let bounds = crate::simulation::metrics::BoundsCheck {
+    let bounds = hil_sim::simulation::metrics::BoundsCheck {
         mu_lo_ratio_min: f64::NAN,
         mu_lo_worst_x_m: f64::NAN,
         mu_hi_ratio_max: f64::NAN,

@@ -9,7 +9,7 @@ use ema::control::actuator::{Actuator, Magnetics};
 use ema::device::params::{self, Kind, Params};
 use ema::device::protocol::{Command, LoadError, Message, Reply, Source, Value};
 
-use crate::bench::link::{Link, Port};
+use crate::link::{Link, Port};
 
 /// Sets every `(name, value)` on the board. The board validates each set with the rest
 /// as they stand, so a valid whole can be refused halfway (a stiffer spring before the
@@ -29,7 +29,7 @@ pub fn set_all<P: Port>(link: &mut Link<P>, sets: &[(&'static str, Value)]) -> a
                 value: *value,
             }) {
                 Ok(()) => {}
-                Err(e) if e.downcast_ref::<crate::bench::link::Refused>().is_some() => {
+                Err(e) if e.downcast_ref::<crate::link::Refused>().is_some() => {
                     refused.push((*name, *value));
                     last = Some(e);
                 }
@@ -56,12 +56,12 @@ pub(super) fn save<P: Port>(link: &mut Link<P>, out: &mut dyn Write) -> anyhow::
         Some(Ok(())) => writeln!(
             out,
             "saved; the board restarted with the {}",
-            crate::bench::source(&started.params)
+            crate::source(&started.params)
         )?,
         Some(Err(e)) => bail!(
             "the save failed: {}; the board restarted with the {}",
-            crate::bench::board::store_error(e),
-            crate::bench::source(&started.params)
+            crate::board::store_error(e),
+            crate::source(&started.params)
         ),
         None => bail!("the board restarted without saving"),
     }
@@ -94,7 +94,7 @@ pub fn backup_text(p: &Params) -> anyhow::Result<String> {
          # own [setpoint] and [link]. `bench restore` sets them all and saves.\n\n{}",
         toml::to_string(&p.actuator)?
     );
-    for table in crate::simulation::actuator::BOARD_TABLES {
+    for table in hil_sim::simulation::actuator::BOARD_TABLES {
         text.push_str(&format!("\n[{table}]\n"));
         for info in params::all().filter(|i| i.name.starts_with(table)) {
             let key = &info.name[table.len() + 1..];
@@ -120,11 +120,12 @@ pub fn backup_text(p: &Params) -> anyhow::Result<String> {
 /// TOML that does not parse, an unknown or mistyped field (named), a value refused.
 pub fn parse_backup(text: &str, origin: &str) -> anyhow::Result<Params> {
     let mut table: toml::Table = toml::from_str(text).with_context(|| origin.to_owned())?;
-    let actuator = crate::simulation::actuator::parse(text, origin)?;
-    let board_tables: Vec<(&str, Option<toml::Value>)> = crate::simulation::actuator::BOARD_TABLES
-        .into_iter()
-        .map(|t| (t, table.remove(t)))
-        .collect();
+    let actuator = hil_sim::simulation::actuator::parse(text, origin)?;
+    let board_tables: Vec<(&str, Option<toml::Value>)> =
+        hil_sim::simulation::actuator::BOARD_TABLES
+            .into_iter()
+            .map(|t| (t, table.remove(t)))
+            .collect();
     let mut p = Params::new(actuator);
     for (name, value) in board_tables {
         let Some(value) = value else { continue };
@@ -186,7 +187,7 @@ pub fn get<P: Port>(link: &mut Link<P>, name: &str) -> anyhow::Result<Value> {
         Message::Reply {
             reply: Reply::Refused(r),
             ..
-        } => Err(anyhow!("{}", crate::bench::refusal(&r))),
+        } => Err(anyhow!("{}", crate::refusal(&r))),
         other => Err(anyhow!("unexpected reply: {other:?}")),
     }
 }

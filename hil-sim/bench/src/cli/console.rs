@@ -6,7 +6,7 @@ use clap::Parser;
 use ema::device::protocol::Command;
 
 use super::{run, status, Verb};
-use crate::bench::link::{Link, Port};
+use crate::link::{Link, Port};
 
 /// Runs the commands of `input`, one per line, over `link` (see [`Verb::Console`]); a
 /// line that does not parse or fails is reported and the next one runs. At the end of the

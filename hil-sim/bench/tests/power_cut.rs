@@ -7,12 +7,12 @@
 //! pages that force the store to close a page, erase the other and carry the set over,
 //! with the cut save starting at every position in the page's cycle.
 
+use bench::flash::{Flash, PAGE, PAGES};
 use ema::control::actuator::Actuator;
 use ema::device::boot;
 use ema::device::params::{Board, Params};
 use ema::device::protocol::Source;
 use ema::device::store::Store;
-use hil_sim::bench::flash::{Flash, PAGE, PAGES};
 
 const BOARD: Board = Board {
     rate_hz: 20_000.0,

@@ -7,10 +7,10 @@ use std::sync::{mpsc, Arc, Mutex};
 use std::thread;
 use std::time::Duration;
 
+use bench::board::{Dropped, Injection, Options, VirtualBoard};
+use bench::cli;
+use bench::link::Link;
 use ema::device::protocol::{Command, Message, Reply};
-use hil_sim::bench::board::{Dropped, Injection, Options, VirtualBoard};
-use hil_sim::bench::cli;
-use hil_sim::bench::link::Link;
 
 pub struct Rig {
     pub link: Link<serialport::TTYPort>,

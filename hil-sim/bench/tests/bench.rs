@@ -9,10 +9,10 @@ mod rig;
 use std::thread;
 use std::time::Duration;
 
+use bench::board::{Injection, Options};
+use bench::cli::{self, CaptureArgs};
 use ema::control::supervisor::Fault;
 use ema::device::protocol::{Command, Message, Mode, Refusal, Reply, Source, Value};
-use hil_sim::bench::board::{Injection, Options};
-use hil_sim::bench::cli::{self, CaptureArgs};
 use rig::Rig;
 
 fn wait_for(rig: &mut Rig, what: &str, f: impl Fn(&ema::device::protocol::Status<'_>) -> bool) {
@@ -106,7 +106,7 @@ fn the_host_tool_drives_the_virtual_board_through_a_session() {
     let s = rig.status();
     assert_eq!(s.fault, Some(Fault::BusUnderVoltage.code()));
     assert_eq!(
-        hil_sim::bench::fault_name(s.fault.unwrap()),
+        bench::fault_name(s.fault.unwrap()),
         "bus_under_voltage (code 8)"
     );
     assert_eq!(
@@ -308,7 +308,7 @@ fn an_armed_board_disarms_when_its_host_falls_silent_and_not_before() {
         (Mode::Fault, Some(Fault::LinkTimeout.code()))
     );
     assert_eq!(
-        hil_sim::bench::fault_name(s.fault.unwrap()),
+        bench::fault_name(s.fault.unwrap()),
         "link_timeout (code 22)"
     );
     rig.link.done(Command::Clear).unwrap();

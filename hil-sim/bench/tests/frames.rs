@@ -19,12 +19,12 @@
 //! [`protocol::decode`] run on the host over the same bytes; the board's answers must be
 //! those, in order, with only rejections left out.
 
+use bench::board::{Options, VirtualBoard};
 use ema::control::actuator::Actuator;
 use ema::device::protocol::{
     self, Command, FrameError, Framer, Message, Request, Trigger, Value, CRC, CRC_LEN, MAX_FRAME,
     VERSION,
 };
-use hil_sim::bench::board::{Options, VirtualBoard};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 

@@ -11,7 +11,7 @@ use ema::control::actuator::Actuator;
 use serialport::SerialPort;
 
 use super::VirtualArgs;
-use crate::bench::board::{Injection, Options, VirtualBoard};
+use crate::board::{Injection, Options, VirtualBoard};
 
 /// What the virtual board's standard input takes.
 pub(super) const INJECTIONS: &str =
@@ -78,7 +78,7 @@ fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
 
 pub(super) fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let actuator = match &a.actuator {
-        Some(name) => crate::simulation::actuator::load(name)?.1,
+        Some(name) => hil_sim::simulation::actuator::load(name)?.1,
         None => Actuator::PRODUCT,
     };
     // As fast as it can, the board's ticks outrun a host's heartbeat paced in real time:

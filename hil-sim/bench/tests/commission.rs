@@ -17,10 +17,10 @@
 #[path = "common/rig.rs"]
 mod rig;
 
+use bench::board::{Injection, Options};
+use bench::cli::{self, CommissionArgs};
 use ema::control::actuator::Actuator;
 use ema::device::protocol::{Command, Commissioned, Message, Mode, Refusal, Reply};
-use hil_sim::bench::board::{Injection, Options};
-use hil_sim::bench::cli::{self, CommissionArgs};
 use rand::{Rng, SeedableRng};
 use rig::Rig;
 

@@ -23,10 +23,10 @@ use anyhow::{bail, Context};
 use clap::{Parser, Subcommand};
 use ema::device::params::{self};
 use ema::device::protocol::Command;
+use hil_sim::analysis::report::Table;
 use serialport::SerialPort;
 
 use super::link::{Link, Port};
-use crate::analysis::report::Table;
 
 mod capture;
 mod commission;
@@ -236,7 +236,7 @@ pub struct VirtualArgs {
 /// Runs the tool on the process's arguments.
 #[must_use]
 pub fn main() -> ExitCode {
-    crate::cli::exit(Cli::parse(), dispatch)
+    hil_sim::cli::exit(Cli::parse(), dispatch)
 }
 
 /// Opens the serial port at `path`, its input flushed (see [`Link::new`]).

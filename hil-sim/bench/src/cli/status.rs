@@ -2,10 +2,10 @@
 
 use anyhow::anyhow;
 use ema::device::protocol::{Build, CaptureState, Command, Message, Reply, Status};
+use hil_sim::analysis::report::{sig, Table};
 
-use crate::analysis::report::{sig, Table};
-use crate::bench::fault_name;
-use crate::bench::link::{Link, Port};
+use crate::fault_name;
+use crate::link::{Link, Port};
 
 /// The board's status.
 ///
@@ -21,7 +21,7 @@ pub fn status<P: Port>(link: &mut Link<P>) -> anyhow::Result<Status<'static>> {
         } => {
             let leak = |t: &str| -> &'static str { Box::leak(t.to_owned().into_boxed_str()) };
             Ok(Status {
-                params: crate::bench::owned_source(&s.params),
+                params: crate::owned_source(&s.params),
                 build: Build {
                     version: leak(s.build.version),
                     id: leak(s.build.id),
@@ -107,7 +107,7 @@ pub fn status_text(s: &Status<'_>) -> String {
         "parameters",
         format!(
             "{}{}",
-            crate::bench::source(&s.params),
+            crate::source(&s.params),
             if s.unsaved {
                 ", changed since (unsaved)"
             } else {

@@ -7,11 +7,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail};
 use ema::device::protocol::{CaptureState, Command, Message, Reply, Trigger, CHUNK_SAMPLES};
+use hil_sim::analysis::report::{self, sig, Figure, Panel, Series, Table};
 
 use super::{read_params, status, CaptureArgs};
-use crate::analysis::report::{self, sig, Figure, Panel, Series, Table};
-use crate::bench::link::{Link, Port};
-use crate::bench::Capture;
+use crate::link::{Link, Port};
+use crate::Capture;
 
 /// What `capture` measured and wrote.
 #[derive(Clone, Debug)]
@@ -19,9 +19,9 @@ pub struct CaptureOutcome {
     /// The capture.
     pub capture: Capture,
     /// The simulator's metrics of the capture.
-    pub board: crate::Metrics,
+    pub board: hil_sim::Metrics,
     /// The simulator's metrics of its prediction, on the same samples.
-    pub simulator: crate::Metrics,
+    pub simulator: hil_sim::Metrics,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -87,7 +87,7 @@ pub(super) fn read_capture<P: Port>(
             Message::Reply {
                 reply: Reply::Refused(r),
                 ..
-            } => bail!("refused: {}", crate::bench::refusal(&r)),
+            } => bail!("refused: {}", crate::refusal(&r)),
             other => bail!("unexpected reply: {other:?}"),
         }
         offset = offset.saturating_add(CHUNK_SAMPLES as u16);
@@ -118,14 +118,14 @@ pub fn capture<P: Port>(
         Some(((a.position_mm * 1e-3) as f32, a.time_s.map(|t| t as f32))),
         rate,
     )?;
-    let (sc, run) = crate::bench::prediction(&params, &capture, a.noise)?;
-    let board = crate::bench::capture_metrics(&sc, &capture);
-    let simulator = crate::bench::prediction_metrics(&sc, &run, &capture);
+    let (sc, run) = crate::prediction(&params, &capture, a.noise)?;
+    let board = crate::capture_metrics(&sc, &capture);
+    let simulator = crate::prediction_metrics(&sc, &run, &capture);
     let at_s = match sc.reference {
-        crate::simulation::scenario::Reference::Step { at_s, .. } => at_s,
+        hil_sim::simulation::scenario::Reference::Step { at_s, .. } => at_s,
         _ => 0.0,
     };
-    let predicted = crate::bench::prediction_samples(&run, &capture, at_s, rate);
+    let predicted = crate::prediction_samples(&run, &capture, at_s, rate);
 
     report::create_dir(&a.out)?;
     let csv = a.out.join("capture.csv");

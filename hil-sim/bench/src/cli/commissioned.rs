@@ -7,11 +7,11 @@ use anyhow::{bail, ensure};
 use ema::control::actuator::{Actuator, Magnetics};
 use ema::device::commission::Report;
 use ema::device::protocol::{Command, Value};
+use hil_sim::analysis::report::sig;
+use hil_sim::identification::commissioning::Mechanics;
 
 use super::{save, set_all, value_text};
-use crate::analysis::report::sig;
-use crate::bench::link::{Link, Port};
-use crate::identification::commissioning::Mechanics;
+use crate::link::{Link, Port};
 
 /// The parameters that carry a commissioned actuator `measured` on a board whose file is
 /// `board`: the resistance, the spring and its preload, the mass and the friction, the
@@ -83,7 +83,7 @@ pub fn commissioned_params(
                  holds measured (--mechanics), whose fit gives the spread"
             );
             // The measured line in the board's form.
-            let line = crate::identification::commissioning::Circuit::line(
+            let line = hil_sim::identification::commissioning::Circuit::line(
                 f64::from(open_h),
                 f64::from(closed_h),
                 measured,
@@ -161,7 +161,7 @@ pub(super) fn apply_commissioned<P: Port>(
 }
 
 /// The actuator file a commissioning gives: the measured actuator
-/// ([`crate::identification::commissioning::measured`], with the `mechanics` when measured), each measured
+/// ([`hil_sim::identification::commissioning::measured`], with the `mechanics` when measured), each measured
 /// value and its uncertainty, and the end stops, in comments at its head.
 ///
 /// # Errors
@@ -175,7 +175,7 @@ pub fn actuator_file(
     let r = report.resistance;
     let l = report.inductance;
     let e = report.ends;
-    let (a, moved) = crate::identification::commissioning::measured(file, report, mechanics)?;
+    let (a, moved) = hil_sim::identification::commissioning::measured(file, report, mechanics)?;
     let spring_head = mechanics.map_or(String::new(), |m| {
         let s = m.spring;
         let armature = m.armature.map_or(

@@ -1,7 +1,7 @@
 //! The virtual board: the firmware's own application ([`ema::device`]: the same
 //! [`Controller`] in the "interrupt", the same [`Dispatcher`] in the "main loop", the same
 //! queues, the same [`device::boot`] and store on a simulated flash) on the simulated
-//! plant, converter and bridge of [`crate::simulation::sim`], one period at a time.
+//! plant, converter and bridge of [`hil_sim::simulation::sim`], one period at a time.
 //!
 //! What the firmware does with hardware, the virtual board does here:
 //!
@@ -15,7 +15,7 @@
 //! | the measured current-sensor zero | the nominal zero |
 //!
 //! The plant, the sensors and the supply are the actuator's judging scenario
-//! ([`crate::simulation::actuator::scenario`]: nominal plant, supply resistance `R/8`, averaged bridge)
+//! ([`hil_sim::simulation::actuator::scenario`]: nominal plant, supply resistance `R/8`, averaged bridge)
 //! with a deterministic converter by default (12 bits, one sample of delay, no noise): a
 //! capture then equals, bit for bit, the simulator's run of the same scenario
 //! ([`super::prediction`]), which the end-to-end tests check. `noise` adds the typical
@@ -38,13 +38,13 @@ use ema::device::store::{ReadOnly, Store};
 use ema::device::{
     self, Action, Boot, Controller, Dispatcher, Inputs, Queues, Storage, Ticked, CAPTURE_CAPACITY,
 };
+use hil_sim::simulation::board::scenario;
+use hil_sim::simulation::hal::{self, Adc, Converter, Lines, Pin, Pwm};
+use hil_sim::simulation::scenario::{BridgeMode, Scenario, Sensors};
+use hil_sim::simulation::sim::Stepper;
+use hil_sim::Error;
 
 use super::flash::{Flash, PAGE, PAGES};
-use crate::simulation::board::scenario;
-use crate::simulation::hal::{self, Adc, Converter, Lines, Pin, Pwm};
-use crate::simulation::scenario::{BridgeMode, Scenario, Sensors};
-use crate::simulation::sim::Stepper;
-use crate::Error;
 
 /// How the virtual board is made.
 #[derive(Clone, Debug)]
@@ -401,7 +401,7 @@ impl VirtualBoard {
 
     /// The plant as the file describes it, before any injection.
     #[must_use]
-    pub fn file_plant(&self) -> crate::simulation::plant::Params {
+    pub fn file_plant(&self) -> hil_sim::simulation::plant::Params {
         self.scenario.plant.resolve(&self.scenario.controller.plant)
     }
 

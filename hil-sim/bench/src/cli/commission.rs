@@ -7,13 +7,13 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail};
 use ema::device::commission::Report;
 use ema::device::protocol::{Command, Commissioned, Message, Reply, Value};
+use hil_sim::analysis::report::{self};
 
 use super::{
     actuator_file, apply_commissioned, measure_mechanics, read_params, status, CommissionArgs,
 };
-use crate::analysis::report::{self};
-use crate::bench::fault_name;
-use crate::bench::link::{Link, Port};
+use crate::fault_name;
+use crate::link::{Link, Port};
 
 /// Runs a commissioning and waits for its outcome; prints it, and with `apply` sets the
 /// measured resistance (the end stops are reported, not yet applied).
@@ -119,12 +119,12 @@ pub fn commission<P: Port>(
             bail!("--tune needs --out FILE: the commissioned file is what is tuned")
         };
         writeln!(out)?;
-        let stem = crate::simulation::actuator::stem(path);
-        let beside = |name: String| crate::cli::Output {
+        let stem = hil_sim::simulation::actuator::stem(path);
+        let beside = |name: String| hil_sim::cli::Output {
             out: Some(path.with_file_name(name)),
         };
-        let tuned = crate::cli::tune::run(
-            &crate::cli::tune::Args {
+        let tuned = hil_sim::cli::tune::run(
+            &hil_sim::cli::tune::Args {
                 actuator: path.display().to_string(),
                 rates_hz: Some(vec![f64::from(file.board.rate_hz)]),
                 validate: TUNE_VALIDATION_DRAWS,
@@ -139,8 +139,8 @@ pub fn commission<P: Port>(
             bail!("no tuning meets every target for the commissioned actuator (see above); nothing applied")
         };
         writeln!(out, "\npredicted with the tuned file:")?;
-        crate::cli::run::run(
-            &crate::cli::run::Args {
+        hil_sim::cli::run::run(
+            &hil_sim::cli::run::Args {
                 scenario: tuned_path.display().to_string(),
                 output: beside(stem.clone()),
                 max_rows: 20_000,
@@ -149,7 +149,7 @@ pub fn commission<P: Port>(
         )?;
         if args.apply {
             // The tuned file: the measured actuator with the tuning chosen.
-            let tuned = crate::simulation::actuator::parse(
+            let tuned = hil_sim::simulation::actuator::parse(
                 &std::fs::read_to_string(&tuned_path)?,
                 &tuned_path.display().to_string(),
             )?;

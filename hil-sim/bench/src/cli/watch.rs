@@ -5,11 +5,11 @@ use std::time::Instant;
 
 use anyhow::anyhow;
 use ema::device::protocol::{Command, Mode, Signal};
+use hil_sim::analysis::report::sig;
 
 use super::WatchArgs;
-use crate::analysis::report::sig;
-use crate::bench::fault_name;
-use crate::bench::link::{Link, Port};
+use crate::fault_name;
+use crate::link::{Link, Port};
 
 pub(super) fn signal_mask(names: &[String]) -> anyhow::Result<(u16, Vec<Signal>)> {
     let mut mask = 0;

@@ -8,24 +8,24 @@ use anyhow::{anyhow, ensure};
 use ema::control::actuator::Actuator;
 use ema::device::commission::Report;
 use ema::device::protocol::{Command, Trigger};
+use hil_sim::analysis::report::sig;
+use hil_sim::identification::commissioning::{HoldInductance, Holds, Mechanics};
 
 use super::{capture_move, commissioned_sets, read_capture, set_all, status};
-use crate::analysis::report::sig;
-use crate::bench::link::{Link, Port};
-use crate::bench::{fault_name, Capture};
-use crate::identification::commissioning::{HoldInductance, Holds, Mechanics};
+use crate::link::{Link, Port};
+use crate::{fault_name, Capture};
 
 /// Measures the magnetic circuit between the stops, the spring, the mass and the friction
-/// on the board ([`crate::identification::commissioning::Circuit::fit`],
-/// [`crate::identification::commissioning::fit_spring`], [`crate::identification::commissioning::fit_armature`]): sets
+/// on the board ([`hil_sim::identification::commissioning::Circuit::fit`],
+/// [`hil_sim::identification::commissioning::fit_spring`], [`hil_sim::identification::commissioning::fit_armature`]): sets
 /// the actuator `report` measured on the board's `file` with the default tuning (not
-/// stored), arms, moves to each position of [`crate::simulation::actuator::SEQUENCE`] and holds it as
+/// stored), arms, moves to each position of [`hil_sim::simulation::actuator::SEQUENCE`] and holds it as
 /// the evaluation sequence does, capturing the move, then the hold's window at the
-/// [`crate::identification::commissioning::decimations`], then the hold's inductance probes at every
+/// [`hil_sim::identification::commissioning::decimations`], then the hold's inductance probes at every
 /// tick; disarms and puts the parameters in use before back (the stored set, or the
 /// built-in defaults). A fault during the holds ends the attempt, named: the holds run
-/// again, cleared, with a slower loop ([`crate::identification::commissioning::hold_tuning`]), up to
-/// [`crate::identification::commissioning::HOLD_ATTEMPTS`] in all.
+/// again, cleared, with a slower loop ([`hil_sim::identification::commissioning::hold_tuning`]), up to
+/// [`hil_sim::identification::commissioning::HOLD_ATTEMPTS`] in all.
 ///
 /// # Errors
 /// A refusal, no reply, a fault during the last attempt at the holds, a capture that
@@ -50,9 +50,9 @@ pub(super) fn measure_mechanics<P: Port>(
     let (holds, probes) = held?;
     disarmed?;
     loaded?;
-    let line = crate::identification::commissioning::Circuit::through_stops(report, &plan.m);
+    let line = hil_sim::identification::commissioning::Circuit::through_stops(report, &plan.m);
     let inductances = probes.each_ref().map(|runs| {
-        crate::identification::commissioning::hold_inductance(
+        hil_sim::identification::commissioning::hold_inductance(
             runs,
             &plan.probe,
             plan.delay,
@@ -67,10 +67,10 @@ pub(super) fn measure_mechanics<P: Port>(
     Ok(mechanics)
 }
 
-/// Each hold's inductance probes: per position of [`crate::simulation::actuator::SEQUENCE`], the
+/// Each hold's inductance probes: per position of [`hil_sim::simulation::actuator::SEQUENCE`], the
 /// samples of each probe.
-type Probes = [Vec<Vec<crate::identification::commissioning::ProbeSample>>;
-    crate::simulation::actuator::SEQUENCE.len()];
+type Probes = [Vec<Vec<hil_sim::identification::commissioning::ProbeSample>>;
+    hil_sim::simulation::actuator::SEQUENCE.len()];
 
 /// How [`measure_mechanics`] captures the holds: the measured actuator with the default
 /// tuning and what follows from it.
@@ -92,7 +92,7 @@ struct HoldPlan {
     /// A window's captured samples.
     window_samples: u16,
     /// The inductance probe at each hold.
-    probe: crate::simulation::scenario::InductanceProbe,
+    probe: hil_sim::simulation::scenario::InductanceProbe,
     /// The loop's delay \[ticks\].
     delay: usize,
     /// A probe's captured samples, one a tick.
@@ -105,23 +105,23 @@ impl HoldPlan {
     /// # Errors
     /// The measured actuator does not make settings.
     fn new(file: &Actuator, report: &Report) -> anyhow::Result<Self> {
-        let (m, _) = crate::identification::commissioning::measured(file, report, None)?;
+        let (m, _) = hil_sim::identification::commissioning::measured(file, report, None)?;
         let settings = m.settings().map_err(|e| anyhow!("{e}"))?;
         let stroke_m = f64::from(m.mechanics.stroke_m);
         let rate_hz = f64::from(m.board.rate_hz);
-        let hold_s = crate::simulation::actuator::segment_s(&settings, stroke_m);
+        let hold_s = hil_sim::simulation::actuator::segment_s(&settings, stroke_m);
         let capacity = u16::try_from(ema::device::CAPTURE_CAPACITY).unwrap_or(u16::MAX);
         let (move_decimation, window_decimation) =
-            crate::identification::commissioning::decimations(&settings, stroke_m, rate_hz);
+            hil_sim::identification::commissioning::decimations(&settings, stroke_m, rate_hz);
         #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let window_samples =
-            ((crate::identification::commissioning::HOLD_WINDOW_SHARE * hold_s * rate_hz
+            ((hil_sim::identification::commissioning::HOLD_WINDOW_SHARE * hold_s * rate_hz
                 / f64::from(window_decimation))
             .round()
             .clamp(1.0, f64::from(capacity))) as u16;
-        let probe = crate::identification::commissioning::hold_probe(&m);
+        let probe = hil_sim::identification::commissioning::hold_probe(&m);
         let delay = usize::from(settings.delay_ticks);
-        let span = u16::try_from(crate::identification::commissioning::probe_capture(
+        let span = u16::try_from(hil_sim::identification::commissioning::probe_capture(
             probe.ticks(),
             delay,
         ))
@@ -151,12 +151,12 @@ impl HoldPlan {
             out,
             "spring, mass and friction: the loop closed with the measured coil and circuit, default tuning; holds of {} s at {}",
             sig(self.hold_s, 3),
-            crate::simulation::actuator::SEQUENCE.map(|f| format!("{} mm", sig(f * self.stroke_m * 1e3, 3))).join(", ")
+            hil_sim::simulation::actuator::SEQUENCE.map(|f| format!("{} mm", sig(f * self.stroke_m * 1e3, 3))).join(", ")
         )?;
         writeln!(
             out,
             "inductance: {} probes at the end of each hold, +-{} A about the hold's current, {} cycles of {} ticks at each level",
-            crate::identification::commissioning::HOLD_PROBE_RUNS,
+            hil_sim::identification::commissioning::HOLD_PROBE_RUNS,
             sig(self.probe.amplitude_a, 3),
             self.probe.cycles,
             self.probe.half_ticks
@@ -166,8 +166,8 @@ impl HoldPlan {
 }
 
 /// Runs the holds of `plan` until they end without a monitor's fault or
-/// [`crate::identification::commissioning::HOLD_ATTEMPTS`] have run: after a fault, cleared, again with
-/// a slower loop ([`crate::identification::commissioning::hold_tuning`]). The inner result is the last
+/// [`hil_sim::identification::commissioning::HOLD_ATTEMPTS`] have run: after a fault, cleared, again with
+/// a slower loop ([`hil_sim::identification::commissioning::hold_tuning`]). The inner result is the last
 /// attempt's; the board is left armed or not as it ended.
 ///
 /// # Errors
@@ -181,7 +181,7 @@ fn hold_with_retries<P: Port>(
 ) -> anyhow::Result<anyhow::Result<(Holds, Probes)>> {
     let mut attempt = 0;
     loop {
-        let tuning = crate::identification::commissioning::hold_tuning(&plan.m, attempt)?;
+        let tuning = hil_sim::identification::commissioning::hold_tuning(&plan.m, attempt)?;
         let sets = commissioned_sets(file, &plan.m, &tuning)?;
         let held = run_holds(link, plan, &sets, report);
         // A monitor that ended the holds: again with a slower loop, while attempts are left.
@@ -191,10 +191,10 @@ fn hold_with_retries<P: Port>(
             .and_then(|e| e.downcast_ref::<HoldsFault>())
             .map(|f| f.0.clone());
         match ended {
-            Some(fault) if attempt + 1 < crate::identification::commissioning::HOLD_ATTEMPTS => {
+            Some(fault) if attempt + 1 < hil_sim::identification::commissioning::HOLD_ATTEMPTS => {
                 link.done(Command::Clear)?;
                 attempt += 1;
-                let slower = crate::identification::commissioning::hold_tuning(&plan.m, attempt)?;
+                let slower = hil_sim::identification::commissioning::hold_tuning(&plan.m, attempt)?;
                 writeln!(
                     out,
                     "  the holds ended by the fault {fault}: again with a slower loop (alpha {} 1/s, observer {} rad/s)",
@@ -208,7 +208,7 @@ fn hold_with_retries<P: Port>(
 }
 
 /// One attempt at the holds: sets `sets`, waits for the armature at the open stop, arms,
-/// and at each position of [`crate::simulation::actuator::SEQUENCE`] captures the move, the hold's
+/// and at each position of [`hil_sim::simulation::actuator::SEQUENCE`] captures the move, the hold's
 /// window and its inductance probes.
 ///
 /// # Errors
@@ -235,7 +235,7 @@ fn run_holds<P: Port>(
         ..Holds::default()
     };
     let mut probes = Probes::default();
-    for (k, f) in crate::simulation::actuator::SEQUENCE
+    for (k, f) in hil_sim::simulation::actuator::SEQUENCE
         .into_iter()
         .enumerate()
     {
@@ -258,7 +258,7 @@ fn run_holds<P: Port>(
         )?;
         holds.windows[k] = readings(&c)?;
         // The inductance at the hold: each probe captured at every tick from its first.
-        for _ in 0..crate::identification::commissioning::HOLD_PROBE_RUNS {
+        for _ in 0..hil_sim::identification::commissioning::HOLD_PROBE_RUNS {
             link.done(Command::Capture {
                 samples: plan.span,
                 decimation: 1,
@@ -271,7 +271,7 @@ fn run_holds<P: Port>(
             probes[k].push(
                 c.samples
                     .iter()
-                    .map(|s| crate::identification::commissioning::ProbeSample {
+                    .map(|s| hil_sim::identification::commissioning::ProbeSample {
                         y_m: f64::from(s.x_m),
                         u_v: f64::from(s.u_v),
                         i_a: f64::from(s.i_a),
@@ -330,7 +330,7 @@ fn print_inductances(
     stroke_m: f64,
     inductances: &[Option<HoldInductance>],
 ) -> anyhow::Result<()> {
-    for (f, l) in crate::simulation::actuator::SEQUENCE
+    for (f, l) in hil_sim::simulation::actuator::SEQUENCE
         .iter()
         .zip(inductances)
     {
@@ -345,7 +345,7 @@ fn print_inductances(
                 "not read at the hold at {} mm (the current did not step, or the probes \
                  spread above {} %)",
                 sig(f * stroke_m * 1e3, 3),
-                100.0 * crate::identification::commissioning::HOLD_PROBE_MAX_SPREAD
+                100.0 * hil_sim::identification::commissioning::HOLD_PROBE_MAX_SPREAD
             ),
         };
         writeln!(out, "  inductance {line}")?;

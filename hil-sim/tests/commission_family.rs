@@ -1,7 +1,7 @@
 //! The board's commissioning routine (`ema::device::commission`) on every actuator of the
-//! family, against its simulated plant ([`hil_sim::identification::commissioning`]): the file's plant here
-//! (the drawn plants are in `tests/commission.rs`, through the host tool and the virtual
-//! board, and in `hil-sim commission`).
+//! family, against its simulated plant ([`hil_sim::identification::commissioning`]): the
+//! file's plant here (the drawn plants are in `tests/commission.rs`, through the host tool
+//! and the virtual board, and in `hil-sim commission`).
 //!
 //! Each member: the resistance within 2 %, the inductance at both stops and the curve the
 //! written file models over the stroke within 5 % of the plant's, the position readings at both stops within 2 codes of the true positions',
@@ -248,13 +248,15 @@ fn drawn_product(
 const SPRING_SEED: u64 = 0x5b71_0000_0000_0013;
 
 /// The spring's rate within 5 % and its preload within 2 % of the spring's force over the
-/// stroke, the mass within its class ([`hil_sim::identification::commissioning::MASS_CLASS`]) and the
-/// friction within its class of the critical damping
-/// ([`hil_sim::identification::commissioning::FRICTION_CLASS_DAMPING`]), measured from the closed-loop holds and the moves
-/// between them ([`hil_sim::identification::commissioning::mechanics`]) on
-/// drawn products and valves (sensor offset and gain errors included, corrected by the
-/// measured end stops), every hold run to its end: no monitor ends them (holds that one
-/// ends measure nothing; `hil-sim commission NAME --n 1000` counts them).
+/// stroke, the mass within its class
+/// ([`hil_sim::identification::commissioning::MASS_CLASS`]) and the friction within its
+/// class of the critical damping
+/// ([`hil_sim::identification::commissioning::FRICTION_CLASS_DAMPING`]), measured from the
+/// closed-loop holds and the moves between them
+/// ([`hil_sim::identification::commissioning::mechanics`]) on drawn products and valves
+/// (sensor offset and gain errors included, corrected by the measured end stops), every
+/// hold run to its end: no monitor ends them (holds that one ends measure nothing; `hil-sim
+/// commission NAME --n 1000` counts them).
 #[test]
 fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
     use rand::SeedableRng;
@@ -453,10 +455,11 @@ const LIGHT_SEED: u64 = 38;
 
 /// A drawn product 21 % lighter than its file with 48 % less friction (damping ratio 0.42
 /// against the file's 0.72): the actuator its commissioning writes carries the mass's
-/// tolerance its measurement leaves ([`hil_sim::identification::commissioning::MASS_CLASS`], not the
-/// file's 10 %), the friction's (5 % of the critical damping, about 12 % here, not the
-/// file's 50 %) and the surfaces' ([`hil_sim::identification::commissioning::SURFACE_CLASS`], not the
-/// file's 20 %); tuned for it, it meets every target on its true plant.
+/// tolerance its measurement leaves
+/// ([`hil_sim::identification::commissioning::MASS_CLASS`], not the file's 10 %), the
+/// friction's (5 % of the critical damping, about 12 % here, not the file's 50 %) and the
+/// surfaces' ([`hil_sim::identification::commissioning::SURFACE_CLASS`], not the file's
+/// 20 %); tuned for it, it meets every target on its true plant.
 #[test]
 fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves() {
     let (a, d, m) = drawn_product(LIGHT_SEED);
@@ -508,8 +511,8 @@ const BETWEEN_SEED: u64 = 46;
 /// commissioned, its surfaces' and spring's tolerances left at the file's (20 % and 10 %,
 /// a datasheet's, wider than the measurement's classes): on a coarse grid (every other
 /// `alpha` of `tune`'s) no point meets every target on every corner plant; the refinement
-/// between the grid's points ([`hil_sim::analysis::tune::REFINE_SEEDS`]) finds gains that meet every target on
-/// every corner, and they meet every target on the true plant.
+/// between the grid's points ([`hil_sim::analysis::tune::REFINE_SEEDS`]) finds gains that
+/// meet every target on every corner, and they meet every target on the true plant.
 #[test]
 fn a_product_a_coarse_grid_misses_is_tuned_between_its_points() {
     let (a, d, m) = drawn_product(BETWEEN_SEED);
@@ -572,9 +575,9 @@ fn growing(
 /// A product whose airgap surface grows with the gap (`k = 0.3`: 37 % more surface at
 /// the open stop than at the closed one): the stops' two inductances alone model its
 /// inductance more than 10 % off between them. The circuit fitted to them and to the
-/// holds' probes ([`hil_sim::identification::commissioning::Circuit::fit`]) reads the growth within 5 %
-/// and the curve within 0.5 % over the stroke; with its pull the spring is read within
-/// 1 % and the mass within 2 %; the actuator written carries the growth
+/// holds' probes ([`hil_sim::identification::commissioning::Circuit::fit`]) reads the
+/// growth within 5 % and the curve within 0.5 % over the stroke; with its pull the spring
+/// is read within 1 % and the mass within 2 %; the actuator written carries the growth
 /// (`fringing_spread`), and, tuned, meets every target on the plant.
 #[test]
 fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_targets() {
@@ -665,9 +668,9 @@ fn a_two_inductance_file_carries_a_growing_surface_as_its_uncertainty() {
 
 /// Readings of a circuit whose surface is constant, each off by less than its own
 /// standard deviation in a pattern a growing surface would explain better: the fit keeps
-/// the surface constant ([`hil_sim::identification::commissioning::GROWTH_SIGNIFICANCE`]) and the line
-/// within 0.3 % of the true inductance over the stroke. The same fit reads a growing
-/// surface's readings, as far off, within 5 % of its growth.
+/// the surface constant ([`hil_sim::identification::commissioning::GROWTH_SIGNIFICANCE`])
+/// and the line within 0.3 % of the true inductance over the stroke. The same fit reads a
+/// growing surface's readings, as far off, within 5 % of its growth.
 #[test]
 fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
     use hil_sim::identification::commissioning::{Circuit, CURVE_POSITIONS};
@@ -721,8 +724,9 @@ fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
 /// started it: the window's mean pull is then the spring's plus the armature's mean
 /// inertia and friction. Four holds of the product oscillating by 1 % of the stroke, 1.1
 /// cycles per window, the pull exactly what the motion asks: with the mass and the
-/// friction the moves read, [`hil_sim::identification::commissioning::fit_spring`] reads the rate within
-/// 0.1 % and the preload within 0.1 % of `K x stroke`; without them, about 2 % off.
+/// friction the moves read, [`hil_sim::identification::commissioning::fit_spring`] reads
+/// the rate within 0.1 % and the preload within 0.1 % of `K x stroke`; without them, about
+/// 2 % off.
 #[test]
 fn a_hold_that_limit_cycles_reads_the_spring_with_the_armature_s_inertia_taken_out() {
     use core::f64::consts::PI;
@@ -827,7 +831,8 @@ fn a_slower_attempt_measures(name: &str, seed: u64, first: &str) {
 /// A drawn solenoid 27 % lighter than its file: held with the default tuning, the
 /// observer (with the file's mass) carries its velocity on after the light armature has
 /// stopped, and the stuck-sensor monitor ends the holds. The holds run again with a slower
-/// loop ([`hil_sim::identification::commissioning::hold_tuning`]) and measure the spring and the mass.
+/// loop ([`hil_sim::identification::commissioning::hold_tuning`]) and measure the spring
+/// and the mass.
 #[test]
 fn holds_a_monitor_ends_run_again_with_a_slower_loop_and_measure_the_armature() {
     a_slower_attempt_measures("solenoid-12v", LIGHT_SOLENOID_SEED, "position_stuck");

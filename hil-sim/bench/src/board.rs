@@ -15,11 +15,11 @@
 //! | the measured current-sensor zero | the nominal zero |
 //!
 //! The plant, the sensors and the supply are the actuator's judging scenario
-//! ([`hil_sim::simulation::actuator::scenario`]: nominal plant, supply resistance `R/8`, averaged bridge)
-//! with a deterministic converter by default (12 bits, one sample of delay, no noise): a
-//! capture then equals, bit for bit, the simulator's run of the same scenario
-//! ([`super::prediction`]), which the end-to-end tests check. `noise` adds the typical
-//! converter noise.
+//! ([`hil_sim::simulation::actuator::scenario`]: nominal plant, supply resistance `R/8`,
+//! averaged bridge) with a deterministic converter by default (12 bits, one sample of
+//! delay, no noise): a capture then equals, bit for bit, the simulator's run of the same
+//! scenario ([`super::prediction`]), which the end-to-end tests check. `noise` adds the
+//! typical converter noise.
 //!
 //! The armature starts at rest at the open end stop; injected faults
 //! ([`VirtualBoard::inject`]) act on the plant as `hil-sim faults` injects them.

@@ -96,8 +96,9 @@ impl Outcome {
     }
 }
 
-/// The cases on an actuator's evaluation scenario `base` (a [`crate::simulation::actuator::scenario`]:
-/// rest at the open stop, then 1/8, 7/8, 3/8 and 3/4 of the stroke, one segment each).
+/// The cases on an actuator's evaluation scenario `base` (a
+/// [`crate::simulation::actuator::scenario`]: rest at the open stop, then 1/8, 7/8, 3/8 and
+/// 3/4 of the stroke, one segment each).
 ///
 /// Injection instants follow the scenario's own timing: "holding" is 10 % of a segment
 /// before the last move, settled at 3/8 of the stroke, where the holding current is the

@@ -6,11 +6,12 @@
 //!
 //! - **tune**: the gains chosen, or the refusal (the target missed, where, by how much);
 //! - **Monte Carlo**: the tuned actuator's evaluation sequence on plants drawn from its
-//!   uncertainty set with a seed apart from the validation's ([`crate::analysis::seeds`]); it passes
-//!   when at most [`MISS_SHARE`] of the draws miss a target (a latched fault is a miss);
-//! - **faults**: the fixed-instant fault cases of [`crate::analysis::faults`], each passing when the
-//!   expected fault is named within the deadline, the current stays under the trip and
-//!   the bridge coasts.
+//!   uncertainty set with a seed apart from the validation's ([`crate::analysis::seeds`]);
+//!   it passes when at most [`MISS_SHARE`] of the draws miss a target (a latched fault is a
+//!   miss);
+//! - **faults**: the fixed-instant fault cases of [`crate::analysis::faults`], each passing
+//!   when the expected fault is named within the deadline, the current stays under the trip
+//!   and the bridge coasts.
 //!
 //! An actuator passes when all three do. A refusal is a failure of the product (the
 //! generator keeps only actuators a user could have), not of the actuator.

@@ -13,9 +13,10 @@
 //!    interrupt rate; the observer bandwidth as a multiple of `alpha`; the shaping margin.
 //!    What the coil can follow is found by the simulation, not assumed. No bound is a
 //!    number tuned on one actuator.
-//! 3. **Theorem 1** as the practical law has it ([`crate::analysis::lyapunov::Problem::practical`]):
-//!    the error system must be quadratically stable over every force gain the loop can
-//!    meet; a candidate that fails it is not simulated.
+//! 3. **Theorem 1** as the practical law has it
+//!    ([`crate::analysis::lyapunov::Problem::practical`]): the error system must be
+//!    quadratically stable over every force gain the loop can meet; a candidate that fails
+//!    it is not simulated.
 //! 4. **Screening, then the worst case**: every candidate runs once on the nominal plant at
 //!    the actuator's own rate; those within [`SCREEN`] of the targets are then run, best
 //!    first, on the 49 corner plants of the uncertainty set ([`corners`]) at every rate, each judged by the actuator's targets

@@ -1,10 +1,10 @@
 //! `hil-sim commission <name> [--n N --seed S --tune]`: the board's commissioning routine
 //! on an actuator's file against N plants drawn wider than it (see
-//! [`crate::identification::commissioning::Draw`]), in parallel: the identification errors' median, 99th
-//! percentile and maximum, the actuator time, the largest coil current, the endings; then
-//! the spring, the mass and the friction measured from closed-loop holds
-//! ([`crate::identification::commissioning::mechanics`]); with
-//! `--tune`, each commissioned actuator tuned and run in closed loop on its true plant.
+//! [`crate::identification::commissioning::Draw`]), in parallel: the identification errors'
+//! median, 99th percentile and maximum, the actuator time, the largest coil current, the
+//! endings; then the spring, the mass and the friction measured from closed-loop holds
+//! ([`crate::identification::commissioning::mechanics`]); with `--tune`, each commissioned
+//! actuator tuned and run in closed loop on its true plant.
 
 use std::collections::BTreeMap;
 use std::io::Write;

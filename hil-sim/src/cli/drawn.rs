@@ -1,9 +1,10 @@
-//! `hil-sim drawn --n N --seed S --plants P`: `N` drawn actuators ([`crate::analysis::drawn`]), each
-//! tuned as a user would and judged out of sample ([`crate::analysis::outofsample`]): whether `tune`
-//! chose gains (or why not), the Monte Carlo of `P` plants on each tuned one, the fault
-//! cases on each. Prints the table, what passed, and the distribution of the tuning time;
-//! writes the table as CSV and Markdown. `hil-sim actuators --draw N --seed S` writes the
-//! same actuators as files, to tune or run one by hand.
+//! `hil-sim drawn --n N --seed S --plants P`: `N` drawn actuators
+//! ([`crate::analysis::drawn`]), each tuned as a user would and judged out of sample
+//! ([`crate::analysis::outofsample`]): whether `tune` chose gains (or why not), the Monte
+//! Carlo of `P` plants on each tuned one, the fault cases on each. Prints the table, what
+//! passed, and the distribution of the tuning time; writes the table as CSV and Markdown.
+//! `hil-sim actuators --draw N --seed S` writes the same actuators as files, to tune or run
+//! one by hand.
 
 use std::fmt::Write as _;
 use std::io::Write;

@@ -6,18 +6,19 @@
 //!
 //! RK4 substeps: unless `--substeps` is given, the fewest per period (at most the
 //! scenario's own) whose every period, replayed from draw 0's recorded states, stays
-//! within [`TOLERANCE_REL`] of a 1 us RK4 solution ([`crate::analysis::accuracy::fewest_substeps`]).
-//! After the draws, the draws that hold a worst case ([`worst_draws`]) are checked the same
-//! way; when one needs more substeps, the draws run again with that many, and the output
-//! says so.
+//! within [`TOLERANCE_REL`] of a 1 us RK4 solution
+//! ([`crate::analysis::accuracy::fewest_substeps`]). After the draws, the draws that hold a
+//! worst case ([`worst_draws`]) are checked the same way; when one needs more substeps, the
+//! draws run again with that many, and the output says so.
 //!
 //! `--sensor-errors` draws each plant's converter gain and offset errors from the
-//! calibration class ([`crate::simulation::hal::CalibrationClass`], +-0.5 % and +-2 codes per channel);
-//! the targets stay judged on the true position, and the output gives apart the sensor's
-//! share of the steady error ([`crate::simulation::hal::sensor_position_error_m`]) and the draws that
-//! miss only because of it. `--spread K` draws the plant beyond the controller's
-//! tolerances (spreads times `K`) and sorts every draw into pass, named fault with the
-//! bridge coasting, or silent failure ([`Class`]).
+//! calibration class ([`crate::simulation::hal::CalibrationClass`], +-0.5 % and +-2 codes
+//! per channel); the targets stay judged on the true position, and the output gives apart
+//! the sensor's share of the steady error
+//! ([`crate::simulation::hal::sensor_position_error_m`]) and the draws that miss only
+//! because of it. `--spread K` draws the plant beyond the controller's tolerances (spreads
+//! times `K`) and sorts every draw into pass, named fault with the bridge coasting, or
+//! silent failure ([`Class`]).
 
 use std::io::Write;
 use std::path::PathBuf;

@@ -139,9 +139,10 @@ impl fmt::Display for LoadError {
 impl std::error::Error for LoadError {}
 
 /// Loads a scenario by embedded name (see [`EMBEDDED`]), an actuator of the family by
-/// name (its evaluation scenario, [`crate::simulation::actuator::scenario`], with its tuned gains), or
-/// a TOML file, scenario or actuator (an actuator file has a `[mechanics]` table), and
-/// checks it ([`preflight`]). A scenario file without a `name` is named after its stem.
+/// name (its evaluation scenario, [`crate::simulation::actuator::scenario`], with its tuned
+/// gains), or a TOML file, scenario or actuator (an actuator file has a `[mechanics]`
+/// table), and checks it ([`preflight`]). A scenario file without a `name` is named after
+/// its stem.
 ///
 /// # Errors
 /// See [`LoadError`].
@@ -299,8 +300,8 @@ fn with_field(text: &str, e: &toml::de::Error) -> String {
 /// bus channel and bus window (a supply outside either makes the first tick read a
 /// broken sensor or trip), [`Scenario::validate`], the controller settings
 /// (`ema::control::Settings::build`, Theorem 1 included), the true plant and the
-/// controller's envelope. [`crate::simulation::sim::run`] repeats the last three; a loader calls this
-/// first so that nothing is written for a scenario that cannot run.
+/// controller's envelope. [`crate::simulation::sim::run`] repeats the last three; a loader
+/// calls this first so that nothing is written for a scenario that cannot run.
 ///
 /// # Errors
 /// The first refused parameter, by name, with its value.

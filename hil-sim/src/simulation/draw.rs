@@ -39,8 +39,9 @@ pub struct SensorDraw {
     /// The converter with the drawn errors.
     pub adc: Adc,
     /// Per segment of the run, the sensor's share of the steady error at the segment's
-    /// reference ([`sensor_position_error_m`](crate::simulation::hal::sensor_position_error_m)) \[% of the reference\]: what no controller
-    /// acting on this reading can remove.
+    /// reference
+    /// ([`sensor_position_error_m`](crate::simulation::hal::sensor_position_error_m))
+    /// \[% of the reference\]: what no controller acting on this reading can remove.
     pub steady_error_pct: Vec<f64>,
     /// Per segment, the overshoot on the true position past the end the sensor's share
     /// shifts the armature to: the controller's part of the overshoot \[% of the step;

@@ -161,8 +161,9 @@ pub(super) fn apply_commissioned<P: Port>(
 }
 
 /// The actuator file a commissioning gives: the measured actuator
-/// ([`hil_sim::identification::commissioning::measured`], with the `mechanics` when measured), each measured
-/// value and its uncertainty, and the end stops, in comments at its head.
+/// ([`hil_sim::identification::commissioning::measured`], with the `mechanics` when
+/// measured), each measured value and its uncertainty, and the end stops, in comments at
+/// its head.
 ///
 /// # Errors
 /// The file does not serialise or does not validate (the board measured values no

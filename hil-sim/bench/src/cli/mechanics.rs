@@ -17,14 +17,16 @@ use crate::{fault_name, Capture};
 
 /// Measures the magnetic circuit between the stops, the spring, the mass and the friction
 /// on the board ([`hil_sim::identification::commissioning::Circuit::fit`],
-/// [`hil_sim::identification::commissioning::fit_spring`], [`hil_sim::identification::commissioning::fit_armature`]): sets
-/// the actuator `report` measured on the board's `file` with the default tuning (not
-/// stored), arms, moves to each position of [`hil_sim::simulation::actuator::SEQUENCE`] and holds it as
-/// the evaluation sequence does, capturing the move, then the hold's window at the
-/// [`hil_sim::identification::commissioning::decimations`], then the hold's inductance probes at every
-/// tick; disarms and puts the parameters in use before back (the stored set, or the
-/// built-in defaults). A fault during the holds ends the attempt, named: the holds run
-/// again, cleared, with a slower loop ([`hil_sim::identification::commissioning::hold_tuning`]), up to
+/// [`hil_sim::identification::commissioning::fit_spring`],
+/// [`hil_sim::identification::commissioning::fit_armature`]): sets the actuator `report`
+/// measured on the board's `file` with the default tuning (not stored), arms, moves to each
+/// position of [`hil_sim::simulation::actuator::SEQUENCE`] and holds it as the evaluation
+/// sequence does, capturing the move, then the hold's window at the
+/// [`hil_sim::identification::commissioning::decimations`], then the hold's inductance
+/// probes at every tick; disarms and puts the parameters in use before back (the stored
+/// set, or the built-in defaults). A fault during the holds ends the attempt, named: the
+/// holds run again, cleared, with a slower loop
+/// ([`hil_sim::identification::commissioning::hold_tuning`]), up to
 /// [`hil_sim::identification::commissioning::HOLD_ATTEMPTS`] in all.
 ///
 /// # Errors
@@ -166,8 +168,9 @@ impl HoldPlan {
 }
 
 /// Runs the holds of `plan` until they end without a monitor's fault or
-/// [`hil_sim::identification::commissioning::HOLD_ATTEMPTS`] have run: after a fault, cleared, again with
-/// a slower loop ([`hil_sim::identification::commissioning::hold_tuning`]). The inner result is the last
+/// [`hil_sim::identification::commissioning::HOLD_ATTEMPTS`] have run: after a fault,
+/// cleared, again with a slower loop
+/// ([`hil_sim::identification::commissioning::hold_tuning`]). The inner result is the last
 /// attempt's; the board is left armed or not as it ended.
 ///
 /// # Errors
@@ -208,8 +211,8 @@ fn hold_with_retries<P: Port>(
 }
 
 /// One attempt at the holds: sets `sets`, waits for the armature at the open stop, arms,
-/// and at each position of [`hil_sim::simulation::actuator::SEQUENCE`] captures the move, the hold's
-/// window and its inductance probes.
+/// and at each position of [`hil_sim::simulation::actuator::SEQUENCE`] captures the move,
+/// the hold's window and its inductance probes.
 ///
 /// # Errors
 /// A refusal, no reply, the armature not back at the open stop, a fault in a capture

@@ -1,8 +1,8 @@
-//! The simulation's samples ([`crate::simulation::sim::Run::samples`]) decimated for a CSV file or a plot
-//! (the `trace*.csv` files). At a 1 MHz ISR one second is a million 144-byte samples; a CSV or a
-//! plot keeps every `n`-th sample and, so that a current chattering from one sample to the
-//! next stays visible, the minimum and maximum of the current and of the coil voltage over
-//! each bucket of `n` samples.
+//! The simulation's samples ([`crate::simulation::sim::Run::samples`]) decimated for a CSV
+//! file or a plot (the `trace*.csv` files). At a 1 MHz ISR one second is a million 144-byte
+//! samples; a CSV or a plot keeps every `n`-th sample and, so that a current chattering
+//! from one sample to the next stays visible, the minimum and maximum of the current and of
+//! the coil voltage over each bucket of `n` samples.
 
 use std::path::Path;
 

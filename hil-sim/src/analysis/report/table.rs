@@ -174,8 +174,9 @@ pub const METRICS_COLUMNS: [&str; 19] = [
 ];
 
 /// The metrics of one or more runs, one row per reference segment: the case's name, the
-/// segment number and every [`crate::simulation::metrics::Segment`] metric (definitions in [`crate::simulation::metrics`]).
-/// A settling time that was not reached reads `not settled`.
+/// segment number and every [`crate::simulation::metrics::Segment`] metric (definitions in
+/// [`crate::simulation::metrics`]). A settling time that was not reached reads
+/// `not settled`.
 #[must_use]
 pub fn metrics_table(cases: &[(&str, &Metrics)]) -> Table {
     let mut t = Table::new(METRICS_COLUMNS);

@@ -273,8 +273,8 @@ impl Scenario {
     }
 
     /// The product's actuator at `rate_hz` on `supply_v` on its evaluation sequence
-    /// ([`crate::simulation::actuator::scenario`]: from rest at the open stop, 0.5 mm, then 3.5 mm at
-    /// 0.3 s, 1.5 mm at 0.6 s and 3 mm at 0.9 s; 1.2 s in all).
+    /// ([`crate::simulation::actuator::scenario`]: from rest at the open stop, 0.5 mm, then
+    /// 3.5 mm at 0.3 s, 1.5 mm at 0.6 s and 3 mm at 0.9 s; 1.2 s in all).
     ///
     /// # Errors
     /// A rate or supply the derivation refuses, by name.

@@ -1,14 +1,14 @@
 //! Wall time of 0.5 s of closed loop at a 20 kHz ISR with the averaged bridge: the
 //! product's practical law (`Scenario::product(20e3, 24.0)`) with ideal sensors, so the
 //! trajectory is deterministic and smooth, integrated with the fewest RK4 substeps per
-//! period within 1e-4 of a 1 us RK4 solution (`hil_sim::accuracy::BENCH_SUBSTEPS`, one
+//! period within 1e-4 of a 1 us RK4 solution (`hil_sim::analysis::accuracy::BENCH_SUBSTEPS`, one
 //! per period; test `the_bench_substep_count_is_the_fewest_within_1e_4_of_a_1_us_solution`).
 //! The scenario files' 10 substeps are measured beside it.
 //!
 //! `cargo bench -p hil-sim`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use hil_sim::accuracy::{bench_scenario, BENCH_SUBSTEPS};
+use hil_sim::analysis::accuracy::{bench_scenario, BENCH_SUBSTEPS};
 
 fn closed_loop(c: &mut Criterion) {
     let mut group =

@@ -1,14 +1,14 @@
 use ema::control::bridge::HBridge;
 use ema::device::commission::{Identification, Plan, Step};
-use hil_sim::bench::board::scenario;
-use hil_sim::hal::{self};
-use hil_sim::scenario::Sensors;
-use hil_sim::sim::Stepper;
+use hil_sim::simulation::board::scenario;
+use hil_sim::simulation::hal::{self};
+use hil_sim::simulation::scenario::Sensors;
+use hil_sim::simulation::sim::Stepper;
 
 fn main() {
     let name = std::env::args().nth(1).unwrap_or("plunger-1kg".into());
     for seed in 1..=6u64 {
-        let (_, a) = hil_sim::actuator::load(&name).unwrap();
+        let (_, a) = hil_sim::simulation::actuator::load(&name).unwrap();
         let a = ema::control::actuator::Actuator { tuning: None, ..a };
         let mut sc = scenario(&a, true).unwrap();
         if let Sensors::Adc(adc) = &mut sc.sensors {

@@ -1,13 +1,13 @@
 //! The RK4 substep counts, measured one period at a time against a 1 us RK4 solution
-//! (see `hil_sim::accuracy` for why not open loop over the whole run).
+//! (see `hil_sim::analysis::accuracy` for why not open loop over the whole run).
 
-use hil_sim::accuracy::{
+use hil_sim::analysis::accuracy::{
     bench_scenario, fewest_substeps, reference_substeps, Reference, BENCH_SUBSTEPS, TOLERANCE_REL,
 };
-use hil_sim::hal::Switches;
-use hil_sim::montecarlo::draw_seed;
-use hil_sim::scenario::{Initial, Sensors, TruePlant, Uncertainty};
-use hil_sim::sim::Stepper;
+use hil_sim::analysis::montecarlo::draw_seed;
+use hil_sim::simulation::hal::Switches;
+use hil_sim::simulation::scenario::{Initial, Sensors, TruePlant, Uncertainty};
+use hil_sim::simulation::sim::Stepper;
 use hil_sim::{run, Scenario};
 
 /// The benchmark loop (the product's law on its actuator, 20 kHz, averaged bridge, ideal

@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
-use hil_sim::catalog::{self, LoadError, EMBEDDED};
 use hil_sim::cli;
+use hil_sim::simulation::catalog::{self, LoadError, EMBEDDED};
 use hil_sim::Scenario;
 
 /// Each embedded file parses, passes every check and equals the constructor it mirrors
@@ -60,7 +60,7 @@ fn left_out_sections_take_their_defaults() {
                                          // A file without the comparator's level simulates a board without one.
     assert_eq!(
         sc.bridge,
-        hil_sim::scenario::Bridge {
+        hil_sim::simulation::scenario::Bridge {
             break_current_a: None,
             ..product.bridge
         }

@@ -5,11 +5,11 @@
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
+use hil_sim::analysis::report::decimated::COLUMNS;
 use hil_sim::cli::{
     self, compare, drawn, faults, golden, montecarlo, paper, run, scenarios, tune, Cli, Command,
     Output,
 };
-use hil_sim::report::decimated::COLUMNS;
 
 fn dir(test: &str) -> PathBuf {
     let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("cli-{test}"));
@@ -176,7 +176,7 @@ fn scenarios_lists_the_embedded_files_and_prints_one() {
     let mut printed = Vec::new();
     scenarios::run(&scenarios::Args::default(), &mut printed).unwrap();
     let list = String::from_utf8(printed).unwrap();
-    for e in &hil_sim::catalog::EMBEDDED {
+    for e in &hil_sim::simulation::catalog::EMBEDDED {
         assert!(
             list.contains(e.name) && list.contains(e.summary()),
             "{list}"
@@ -189,7 +189,9 @@ fn scenarios_lists_the_embedded_files_and_prints_one() {
     scenarios::run(&args, &mut printed).unwrap();
     assert_eq!(
         String::from_utf8(printed).unwrap(),
-        hil_sim::catalog::embedded("product").unwrap().text
+        hil_sim::simulation::catalog::embedded("product")
+            .unwrap()
+            .text
     );
     let args = scenarios::Args {
         name: Some("nope".into()),
@@ -239,7 +241,7 @@ fn montecarlo_reports_the_worst_case_and_every_draw() {
     assert!(printed.contains("running the draws again"), "{printed}");
     for (k, a) in &o.checked {
         assert!(
-            a.within(hil_sim::accuracy::TOLERANCE_REL),
+            a.within(hil_sim::analysis::accuracy::TOLERANCE_REL),
             "draw {k}: {a:?}"
         );
         assert!(
@@ -256,7 +258,7 @@ fn montecarlo_reports_the_worst_case_and_every_draw() {
         .iter()
         .map(|d| d.metrics.first().unwrap().i_peak_a)
         .fold(0.0, f64::max);
-    assert_eq!(peak[1], hil_sim::report::sig(max, 4));
+    assert_eq!(peak[1], hil_sim::analysis::report::sig(max, 4));
     let header = csv_header(&out.join("draws.csv"));
     for c in [
         "draw",
@@ -398,7 +400,11 @@ fn tune_writes_a_tuned_file_that_loads() {
     let out = dir("tune");
     std::fs::create_dir_all(&out).unwrap();
     let file = out.join("valve.toml");
-    std::fs::write(&file, hil_sim::actuator::member("valve").unwrap().text).unwrap();
+    std::fs::write(
+        &file,
+        hil_sim::simulation::actuator::member("valve").unwrap().text,
+    )
+    .unwrap();
     let (o, printed) = tune_at_20_khz(&file, &out);
     let path = o.tuned.unwrap_or_else(|| panic!("{printed}"));
     assert_eq!(path, out.join("valve.tuned.toml"));
@@ -417,10 +423,13 @@ fn tune_writes_a_tuned_file_that_loads() {
         .unwrap();
     let strokes = radius / 1.5e-3;
     assert!(
-        printed.contains(&format!("{} strokes)", hil_sim::report::sig(strokes, 3))),
+        printed.contains(&format!(
+            "{} strokes)",
+            hil_sim::analysis::report::sig(strokes, 3)
+        )),
         "{strokes} {printed}"
     );
-    let (name, back) = hil_sim::actuator::load(path.to_str().unwrap()).unwrap();
+    let (name, back) = hil_sim::simulation::actuator::load(path.to_str().unwrap()).unwrap();
     assert_eq!(name, "valve");
     assert_eq!(Some(back), o.report.tuned);
     assert_eq!(
@@ -476,9 +485,9 @@ fn drawn_tunes_and_judges_each_actuator_and_counts_what_passed() {
     let out = dir("drawn");
     let args = drawn::Args {
         n: 2,
-        seed: hil_sim::seeds::DRAWN_DEVELOPMENT,
+        seed: hil_sim::analysis::seeds::DRAWN_DEVELOPMENT,
         plants: 4,
-        plant_seed: hil_sim::seeds::RESULTS,
+        plant_seed: hil_sim::analysis::seeds::RESULTS,
         quiet: true,
         output: Output {
             out: Some(out.clone()),
@@ -583,12 +592,15 @@ fn drawn_files_load_and_tune_refuses_a_file_that_breaks_a_rule_by_name() {
     let printed = String::from_utf8(printed).unwrap();
     for k in 0..3 {
         let path = out.join(format!("drawn-5-{k:03}.toml"));
-        let (_, act) = hil_sim::actuator::load(path.to_str().unwrap()).unwrap();
-        assert_eq!(act, hil_sim::drawn::draw_one(5, k).unwrap().actuator);
+        let (_, act) = hil_sim::simulation::actuator::load(path.to_str().unwrap()).unwrap();
+        assert_eq!(
+            act,
+            hil_sim::analysis::drawn::draw_one(5, k).unwrap().actuator
+        );
         assert!(printed.contains(&format!("drawn-5-{k:03}")), "{printed}");
     }
     // The valve with a coil rated 1.5 A: 1.53 A holds its stroke on the weakest plant.
-    let weak = hil_sim::actuator::member("valve")
+    let weak = hil_sim::simulation::actuator::member("valve")
         .unwrap()
         .text
         .replace("rated_current_a = 2.0", "rated_current_a = 1.5");

@@ -1,7 +1,7 @@
 //! The board's commissioning routine (`ema::device::commission`) on every actuator of the
-//! family, against its simulated plant ([`hil_sim::commissioning`]): the file's plant here
-//! (the drawn plants are in `tests/commission.rs`, through the host tool and the virtual
-//! board, and in `hil-sim commission`).
+//! family, against its simulated plant ([`hil_sim::identification::commissioning`]): the
+//! file's plant here (the drawn plants are in `tests/commission.rs`, through the host tool
+//! and the virtual board, and in `hil-sim commission`).
 //!
 //! Each member: the resistance within 2 %, the inductance at both stops and the curve the
 //! written file models over the stroke within 5 % of the plant's, the position readings at both stops within 2 codes of the true positions',
@@ -10,13 +10,13 @@
 //! drawn wider than its file, commissioned and tuned, meets every target in closed loop on
 //! its true plant (`hil-sim commission NAME --tune` gives the rate over many draws).
 
-use hil_sim::commissioning::Errors;
+use hil_sim::identification::commissioning::Errors;
 
 #[test]
 fn every_member_is_commissioned_within_its_targets() {
-    for e in &hil_sim::actuator::FAMILY {
-        let (name, a) = hil_sim::actuator::load(e.name).unwrap();
-        let o = hil_sim::commissioning::run(&a, None).unwrap();
+    for e in &hil_sim::simulation::actuator::FAMILY {
+        let (name, a) = hil_sim::simulation::actuator::load(e.name).unwrap();
+        let o = hil_sim::identification::commissioning::run(&a, None).unwrap();
         let Some(Errors {
             resistance: r,
             inductance_open: l_open,
@@ -62,11 +62,11 @@ fn small_probe_steps_give_the_inductance_within_five_percent_on_drawn_plants() {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(INDUCTANCE_SEED);
     eprintln!("seed {INDUCTANCE_SEED:#x}");
     for name in ["plunger-1kg", "pilot-50khz"] {
-        let (_, a) = hil_sim::actuator::load(name).unwrap();
+        let (_, a) = hil_sim::simulation::actuator::load(name).unwrap();
         let mut worst = [0.0_f64; 3];
         for _ in 0..16 {
-            let draw = hil_sim::commissioning::Draw::new(&mut rng);
-            let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
+            let draw = hil_sim::identification::commissioning::Draw::new(&mut rng);
+            let o = hil_sim::identification::commissioning::run(&a, Some(&draw)).unwrap();
             let Some(Errors {
                 inductance_open: open,
                 inductance_closed: closed,
@@ -114,12 +114,12 @@ const SNAP_SEEDS: [u64; 3] = [62, 78, 82];
 #[test]
 fn a_valve_that_snaps_onto_its_stop_in_a_step_s_wait_is_driven_within_its_rating() {
     use rand::SeedableRng;
-    let (_, a) = hil_sim::actuator::load("valve").unwrap();
+    let (_, a) = hil_sim::simulation::actuator::load("valve").unwrap();
     let rated = f64::from(a.coil.rated_current_a);
     for seed in SNAP_SEEDS {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-        let draw = hil_sim::commissioning::Draw::new(&mut rng);
-        let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
+        let draw = hil_sim::identification::commissioning::Draw::new(&mut rng);
+        let o = hil_sim::identification::commissioning::run(&a, Some(&draw)).unwrap();
         eprintln!(
             "seed {seed}: peak {:.4} A (rated {rated} A), {:?}",
             o.peak_a, o.report
@@ -139,13 +139,13 @@ const PRODUCT_SEED: u64 = 0x00e3_a5ee_d000_0006;
 #[test]
 fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
     use rand::SeedableRng;
-    let (_, a) = hil_sim::actuator::load("product").unwrap();
+    let (_, a) = hil_sim::simulation::actuator::load("product").unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(PRODUCT_SEED);
-    let draw = hil_sim::commissioning::Draw::new(&mut rng);
-    let o = hil_sim::commissioning::run(&a, Some(&draw)).unwrap();
+    let draw = hil_sim::identification::commissioning::Draw::new(&mut rng);
+    let o = hil_sim::identification::commissioning::run(&a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
-    let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
-    let c = hil_sim::commissioning::closed_loop(&a, &report, None, &plant).unwrap();
+    let plant = hil_sim::identification::commissioning::true_plant(&a, Some(&draw)).unwrap();
+    let c = hil_sim::identification::commissioning::closed_loop(&a, &report, None, &plant).unwrap();
     eprintln!("seed {PRODUCT_SEED:#x}: {draw:?}\n{c:?}");
     assert_eq!(c.misses(), Vec::<&str>::new(), "{c:?}");
 }
@@ -159,8 +159,8 @@ fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
 fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commissioned() {
     let t = ema::control::actuator::POSITION_SENSOR_TOLERANCE;
     let reach = ema::control::actuator::NOISE_SIGMAS * ema::control::sense::NOISE_RMS_CODES;
-    for e in &hil_sim::actuator::FAMILY {
-        let (name, a) = hil_sim::actuator::load(e.name).unwrap();
+    for e in &hil_sim::simulation::actuator::FAMILY {
+        let (name, a) = hil_sim::simulation::actuator::load(e.name).unwrap();
         let ch = a.calibration().position;
         let stroke = a.mechanics.stroke_m;
         for sign in [-1.0_f32, 1.0] {
@@ -176,15 +176,15 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
             }
         }
     }
-    let (_, a) = hil_sim::actuator::load("product").unwrap();
-    let corner = hil_sim::commissioning::Draw {
-        factors: hil_sim::commissioning::Factors::NONE,
+    let (_, a) = hil_sim::simulation::actuator::load("product").unwrap();
+    let corner = hil_sim::identification::commissioning::Draw {
+        factors: hil_sim::identification::commissioning::Factors::NONE,
         preload_share: 0.0,
         gain_error: f64::from(t),
         offset_share: f64::from(t),
-        noise_seed: hil_sim::hal::Adc::typical().seed,
+        noise_seed: hil_sim::simulation::hal::Adc::typical().seed,
     };
-    let o = hil_sim::commissioning::run(&a, Some(&corner)).unwrap();
+    let o = hil_sim::identification::commissioning::run(&a, Some(&corner)).unwrap();
     let Some(Errors {
         open_codes: open,
         closed_codes: closed,
@@ -200,10 +200,10 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
 /// true plant, the commissioning's report, what the holds measured (none: every attempt
 /// ended by a fault) and the faults that ended attempts.
 struct Drawn {
-    draw: hil_sim::commissioning::Draw,
-    plant: hil_sim::plant::Params,
+    draw: hil_sim::identification::commissioning::Draw,
+    plant: hil_sim::simulation::plant::Params,
     report: ema::device::commission::Report,
-    mechanics: Option<hil_sim::commissioning::Mechanics>,
+    mechanics: Option<hil_sim::identification::commissioning::Mechanics>,
     faults: Vec<&'static str>,
 }
 
@@ -212,11 +212,12 @@ fn holds_on_a_drawn_plant(
     a: &ema::control::actuator::Actuator,
     rng: &mut rand_pcg::Pcg64,
 ) -> Drawn {
-    let draw = hil_sim::commissioning::Draw::new(rng);
-    let o = hil_sim::commissioning::run(a, Some(&draw)).unwrap();
+    let draw = hil_sim::identification::commissioning::Draw::new(rng);
+    let o = hil_sim::identification::commissioning::run(a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
-    let plant = hil_sim::commissioning::true_plant(a, Some(&draw)).unwrap();
-    let holding = hil_sim::commissioning::mechanics(a, &report, &plant, Some(&draw)).unwrap();
+    let plant = hil_sim::identification::commissioning::true_plant(a, Some(&draw)).unwrap();
+    let holding =
+        hil_sim::identification::commissioning::mechanics(a, &report, &plant, Some(&draw)).unwrap();
     Drawn {
         draw,
         plant,
@@ -232,10 +233,10 @@ fn drawn_product(
 ) -> (
     ema::control::actuator::Actuator,
     Drawn,
-    hil_sim::commissioning::Mechanics,
+    hil_sim::identification::commissioning::Mechanics,
 ) {
     use rand::SeedableRng;
-    let (_, a) = hil_sim::actuator::load("product").unwrap();
+    let (_, a) = hil_sim::simulation::actuator::load("product").unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     eprintln!("seed {seed}");
     let d = holds_on_a_drawn_plant(&a, &mut rng);
@@ -247,20 +248,22 @@ fn drawn_product(
 const SPRING_SEED: u64 = 0x5b71_0000_0000_0013;
 
 /// The spring's rate within 5 % and its preload within 2 % of the spring's force over the
-/// stroke, the mass within its class ([`hil_sim::commissioning::MASS_CLASS`]) and the
-/// friction within its class of the critical damping
-/// ([`hil_sim::commissioning::FRICTION_CLASS_DAMPING`]), measured from the closed-loop holds and the moves
-/// between them ([`hil_sim::commissioning::mechanics`]) on
-/// drawn products and valves (sensor offset and gain errors included, corrected by the
-/// measured end stops), every hold run to its end: no monitor ends them (holds that one
-/// ends measure nothing; `hil-sim commission NAME --n 1000` counts them).
+/// stroke, the mass within its class
+/// ([`hil_sim::identification::commissioning::MASS_CLASS`]) and the friction within its
+/// class of the critical damping
+/// ([`hil_sim::identification::commissioning::FRICTION_CLASS_DAMPING`]), measured from the
+/// closed-loop holds and the moves between them
+/// ([`hil_sim::identification::commissioning::mechanics`]) on drawn products and valves
+/// (sensor offset and gain errors included, corrected by the measured end stops), every
+/// hold run to its end: no monitor ends them (holds that one ends measure nothing; `hil-sim
+/// commission NAME --n 1000` counts them).
 #[test]
 fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
     use rand::SeedableRng;
     let mut rng = rand_pcg::Pcg64::seed_from_u64(SPRING_SEED);
     eprintln!("seed {SPRING_SEED:#x}");
     for name in ["product", "valve"] {
-        let (_, a) = hil_sim::actuator::load(name).unwrap();
+        let (_, a) = hil_sim::simulation::actuator::load(name).unwrap();
         for _ in 0..6 {
             let Drawn {
                 draw,
@@ -277,7 +280,7 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                 Some(m) => {
                     let errors = m.inductance_errors(&plant);
                     for (k, (probe, e)) in m.inductances.iter().zip(errors).enumerate() {
-                        let Some(hil_sim::commissioning::HoldInductance {
+                        let Some(hil_sim::identification::commissioning::HoldInductance {
                             x_m: x,
                             inductance_h: l,
                             spread_h: spread,
@@ -321,13 +324,13 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                 plant.friction_n_s_per_m
             );
             assert!(
-                m.abs() < hil_sim::commissioning::MASS_CLASS,
+                m.abs() < hil_sim::identification::commissioning::MASS_CLASS,
                 "{name}: {arm:?}, plant {plant:?}"
             );
             let critical = 2.0 * (plant.spring_n_per_m * plant.mass_kg).sqrt();
             let c = (arm.friction_n_s_per_m - plant.friction_n_s_per_m) / critical;
             assert!(
-                c.abs() < hil_sim::commissioning::FRICTION_CLASS_DAMPING,
+                c.abs() < hil_sim::identification::commissioning::FRICTION_CLASS_DAMPING,
                 "{name}: friction {:+.3} of the critical damping; {arm:?}, plant {plant:?}",
                 c
             );
@@ -382,7 +385,10 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
             (&u[cut..], &read[cut..], &x_read[cut..]),
         ];
         let read_with = |motion: f64, r_ohm: f64| {
-            hil_sim::commissioning::probe_inductance(&runs, motion, half, 1, ts, r_ohm).unwrap()
+            hil_sim::identification::commissioning::probe_inductance(
+                &runs, motion, half, 1, ts, r_ohm,
+            )
+            .unwrap()
         };
         let (got, spread) = read_with(kappa / r, r);
         eprintln!(
@@ -415,9 +421,9 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
 /// (left in, the sag read the one near the open stop 4 % high).
 #[test]
 fn a_weak_magnet_on_a_resistive_coil_has_its_holds_read_within_two_percent() {
-    let (_, a) = hil_sim::actuator::load("valve").unwrap();
-    let draw = hil_sim::commissioning::Draw {
-        factors: hil_sim::commissioning::Factors {
+    let (_, a) = hil_sim::simulation::actuator::load("valve").unwrap();
+    let draw = hil_sim::identification::commissioning::Draw {
+        factors: hil_sim::identification::commissioning::Factors {
             surfaces: 0.71,
             resistance: 1.24,
             spring: 1.29,
@@ -429,12 +435,12 @@ fn a_weak_magnet_on_a_resistive_coil_has_its_holds_read_within_two_percent() {
         offset_share: 0.0,
         noise_seed: 144,
     };
-    let report = hil_sim::commissioning::run(&a, Some(&draw))
+    let report = hil_sim::identification::commissioning::run(&a, Some(&draw))
         .unwrap()
         .report
         .unwrap();
-    let plant = hil_sim::commissioning::true_plant(&a, Some(&draw)).unwrap();
-    let m = hil_sim::commissioning::mechanics(&a, &report, &plant, Some(&draw))
+    let plant = hil_sim::identification::commissioning::true_plant(&a, Some(&draw)).unwrap();
+    let m = hil_sim::identification::commissioning::mechanics(&a, &report, &plant, Some(&draw))
         .unwrap()
         .mechanics
         .unwrap();
@@ -449,14 +455,16 @@ const LIGHT_SEED: u64 = 38;
 
 /// A drawn product 21 % lighter than its file with 48 % less friction (damping ratio 0.42
 /// against the file's 0.72): the actuator its commissioning writes carries the mass's
-/// tolerance its measurement leaves ([`hil_sim::commissioning::MASS_CLASS`], not the
-/// file's 10 %), the friction's (5 % of the critical damping, about 12 % here, not the
-/// file's 50 %) and the surfaces' ([`hil_sim::commissioning::SURFACE_CLASS`], not the
-/// file's 20 %); tuned for it, it meets every target on its true plant.
+/// tolerance its measurement leaves
+/// ([`hil_sim::identification::commissioning::MASS_CLASS`], not the file's 10 %), the
+/// friction's (5 % of the critical damping, about 12 % here, not the file's 50 %) and the
+/// surfaces' ([`hil_sim::identification::commissioning::SURFACE_CLASS`], not the file's
+/// 20 %); tuned for it, it meets every target on its true plant.
 #[test]
 fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves() {
     let (a, d, m) = drawn_product(LIGHT_SEED);
-    let (measured, _) = hil_sim::commissioning::measured(&a, &d.report, Some(&m)).unwrap();
+    let (measured, _) =
+        hil_sim::identification::commissioning::measured(&a, &d.report, Some(&m)).unwrap();
     let t = measured.tolerance;
     let plant = &d.plant;
     eprintln!(
@@ -467,14 +475,14 @@ fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_l
     assert!(plant.friction_n_s_per_m < 0.55 * f64::from(a.mechanics.friction_n_s_per_m));
     assert_eq!(
         f64::from(t.mass),
-        f64::from(hil_sim::commissioning::MASS_CLASS as f32)
+        f64::from(hil_sim::identification::commissioning::MASS_CLASS as f32)
     );
     assert!(0.1 < t.friction && t.friction < 0.15, "{t:?}");
     // The holds' probes read the circuit within the surfaces' class: the class, not the
     // file's 20 %. Had they read it 30 % below its form, the tolerance would cover that.
     assert_eq!(
         f64::from(t.surface),
-        f64::from(hil_sim::commissioning::SURFACE_CLASS as f32)
+        f64::from(hil_sim::identification::commissioning::SURFACE_CLASS as f32)
     );
     let deviation = m.form_deviation(&measured).unwrap();
     eprintln!(
@@ -486,9 +494,11 @@ fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_l
     for p in off.inductances.iter_mut().flatten() {
         p.inductance_h *= 0.7;
     }
-    let (wider, _) = hil_sim::commissioning::measured(&a, &d.report, Some(&off)).unwrap();
+    let (wider, _) =
+        hil_sim::identification::commissioning::measured(&a, &d.report, Some(&off)).unwrap();
     assert!(wider.tolerance.surface > 0.42, "{:?}", wider.tolerance);
-    let c = hil_sim::commissioning::closed_loop(&a, &d.report, Some(&m), plant).unwrap();
+    let c = hil_sim::identification::commissioning::closed_loop(&a, &d.report, Some(&m), plant)
+        .unwrap();
     eprintln!("{c:?}");
     assert_eq!(c.misses(), Vec::<&str>::new(), "{c:?}");
 }
@@ -501,36 +511,37 @@ const BETWEEN_SEED: u64 = 46;
 /// commissioned, its surfaces' and spring's tolerances left at the file's (20 % and 10 %,
 /// a datasheet's, wider than the measurement's classes): on a coarse grid (every other
 /// `alpha` of `tune`'s) no point meets every target on every corner plant; the refinement
-/// between the grid's points ([`hil_sim::tune::REFINE_SEEDS`]) finds gains that meet every target on
-/// every corner, and they meet every target on the true plant.
+/// between the grid's points ([`hil_sim::analysis::tune::REFINE_SEEDS`]) finds gains that
+/// meet every target on every corner, and they meet every target on the true plant.
 #[test]
 fn a_product_a_coarse_grid_misses_is_tuned_between_its_points() {
     let (a, d, m) = drawn_product(BETWEEN_SEED);
-    let (mut measured, _) = hil_sim::commissioning::measured(&a, &d.report, Some(&m)).unwrap();
+    let (mut measured, _) =
+        hil_sim::identification::commissioning::measured(&a, &d.report, Some(&m)).unwrap();
     measured.tolerance.surface = a.tolerance.surface;
     measured.tolerance.spring = a.tolerance.spring;
     let rate = f64::from(a.board.rate_hz);
     // A coarse grid: every other `alpha` of tune's own.
-    let mut space = hil_sim::tune::Space::for_actuator(&measured, rate).unwrap();
+    let mut space = hil_sim::analysis::tune::Space::for_actuator(&measured, rate).unwrap();
     space.alpha = space.alpha.iter().copied().step_by(2).collect();
-    let tuned = hil_sim::tune::tune(
+    let tuned = hil_sim::analysis::tune::tune(
         "between",
         &measured,
         &[rate],
         &space,
         1,
-        hil_sim::commissioning::CLOSED_LOOP_VALIDATION,
+        hil_sim::identification::commissioning::CLOSED_LOOP_VALIDATION,
     )
     .unwrap();
     let chosen = tuned.chosen.as_ref().expect("tuned").candidate;
     eprintln!("chosen {chosen:?}; grid {space:?}");
     let on_grid = space.candidates(rate).contains(&chosen);
     assert!(!on_grid, "{chosen:?} is a grid point");
-    let mut sc = hil_sim::actuator::scenario("between", &tuned.tuned.unwrap()).unwrap();
-    sc.plant = hil_sim::scenario::TruePlant::Given(d.plant.clone());
-    let run = hil_sim::sim::run(&sc).unwrap();
-    let targets = hil_sim::targets::Targets::for_scenario(&sc);
-    let worst = hil_sim::targets::Worst::of([&run.metrics], &targets);
+    let mut sc = hil_sim::simulation::actuator::scenario("between", &tuned.tuned.unwrap()).unwrap();
+    sc.plant = hil_sim::simulation::scenario::TruePlant::Given(d.plant.clone());
+    let run = hil_sim::simulation::sim::run(&sc).unwrap();
+    let targets = hil_sim::simulation::targets::Targets::for_scenario(&sc);
+    let worst = hil_sim::simulation::targets::Worst::of([&run.metrics], &targets);
     assert_eq!(worst.misses(&targets), Vec::<&str>::new(), "{worst:?}");
 }
 
@@ -543,34 +554,34 @@ fn growing(
     k: f64,
 ) -> (
     ema::control::actuator::Actuator,
-    hil_sim::plant::Params,
+    hil_sim::simulation::plant::Params,
     f64,
 ) {
-    let (_, a) = hil_sim::actuator::load(name).unwrap();
-    let mut plant = hil_sim::commissioning::true_plant(&a, None).unwrap();
+    let (_, a) = hil_sim::simulation::actuator::load(name).unwrap();
+    let mut plant = hil_sim::identification::commissioning::true_plant(&a, None).unwrap();
     let mid = plant.gap_m(0.5 * plant.stroke_m);
     let side = plant.gaps[0].area_m2(mid).sqrt() - k * mid;
     for g in &mut plant.gaps {
-        *g = hil_sim::plant::Surface::Rectangular {
+        *g = hil_sim::simulation::plant::Surface::Rectangular {
             a_m: side,
             b_m: side,
             spread: k,
         };
     }
-    plant.force = hil_sim::plant::ForceModel::EnergyConsistent;
+    plant.force = hil_sim::simulation::plant::ForceModel::EnergyConsistent;
     (a, plant, k / side)
 }
 
 /// A product whose airgap surface grows with the gap (`k = 0.3`: 37 % more surface at
 /// the open stop than at the closed one): the stops' two inductances alone model its
 /// inductance more than 10 % off between them. The circuit fitted to them and to the
-/// holds' probes ([`hil_sim::commissioning::Circuit::fit`]) reads the growth within 5 %
-/// and the curve within 0.5 % over the stroke; with its pull the spring is read within
-/// 1 % and the mass within 2 %; the actuator written carries the growth
+/// holds' probes ([`hil_sim::identification::commissioning::Circuit::fit`]) reads the
+/// growth within 5 % and the curve within 0.5 % over the stroke; with its pull the spring
+/// is read within 1 % and the mass within 2 %; the actuator written carries the growth
 /// (`fringing_spread`), and, tuned, meets every target on the plant.
 #[test]
 fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_targets() {
-    use hil_sim::commissioning as c;
+    use hil_sim::identification::commissioning as c;
     let (a, plant, growth) = growing("product", 0.3);
     let report = c::run_on(&a, &plant, None).unwrap().report.unwrap();
     let m = c::mechanics(&a, &report, &plant, None)
@@ -618,12 +629,12 @@ fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_
 /// the growth within 5 % and the spring within 2 %, but the file written through the
 /// fitted circuit's stop values models the inductance 8-9 % off between them. It says
 /// so: its surface tolerance, the controller's uncertainty set, is that deviation
-/// ([`hil_sim::commissioning::Mechanics::form_deviation`]), not the 5 % class, and,
+/// ([`hil_sim::identification::commissioning::Mechanics::form_deviation`]), not the 5 % class, and,
 /// tuned for it, the loop meets every target on the plant (as it does told the class:
 /// this plant is within the law's robustness either way).
 #[test]
 fn a_two_inductance_file_carries_a_growing_surface_as_its_uncertainty() {
-    use hil_sim::commissioning as c;
+    use hil_sim::identification::commissioning as c;
     let (a, plant, growth) = growing("solenoid-12v", 0.3);
     assert!(matches!(
         a.magnetics,
@@ -657,25 +668,25 @@ fn a_two_inductance_file_carries_a_growing_surface_as_its_uncertainty() {
 
 /// Readings of a circuit whose surface is constant, each off by less than its own
 /// standard deviation in a pattern a growing surface would explain better: the fit keeps
-/// the surface constant ([`hil_sim::commissioning::GROWTH_SIGNIFICANCE`]) and the line
-/// within 0.3 % of the true inductance over the stroke. The same fit reads a growing
-/// surface's readings, as far off, within 5 % of its growth.
+/// the surface constant ([`hil_sim::identification::commissioning::GROWTH_SIGNIFICANCE`])
+/// and the line within 0.3 % of the true inductance over the stroke. The same fit reads a
+/// growing surface's readings, as far off, within 5 % of its growth.
 #[test]
 fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
-    use hil_sim::commissioning::{Circuit, CURVE_POSITIONS};
+    use hil_sim::identification::commissioning::{Circuit, CURVE_POSITIONS};
     for (k, grows) in [(0.0, false), (0.3, true)] {
         let (a, plant, growth) = growing("product", k);
         let at = |x: f64| plant.inductance_h(plant.gap_m(x));
         let stroke = plant.stroke_m;
         // Ends high, middle low: the shape a growth gives `1/L`; 2 standard errors 0.5 %.
         let off = [0.002, -0.002, -0.002, 0.002];
-        let holds: Vec<Option<hil_sim::commissioning::HoldInductance>> =
-            hil_sim::actuator::SEQUENCE
+        let holds: Vec<Option<hil_sim::identification::commissioning::HoldInductance>> =
+            hil_sim::simulation::actuator::SEQUENCE
                 .iter()
                 .zip(off)
                 .map(|(f, e)| {
                     let l = at(f * stroke) * (1.0 + e);
-                    Some(hil_sim::commissioning::HoldInductance {
+                    Some(hil_sim::identification::commissioning::HoldInductance {
                         x_m: f * stroke,
                         inductance_h: l,
                         spread_h: 0.005 * l,
@@ -713,14 +724,15 @@ fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
 /// started it: the window's mean pull is then the spring's plus the armature's mean
 /// inertia and friction. Four holds of the product oscillating by 1 % of the stroke, 1.1
 /// cycles per window, the pull exactly what the motion asks: with the mass and the
-/// friction the moves read, [`hil_sim::commissioning::fit_spring`] reads the rate within
-/// 0.1 % and the preload within 0.1 % of `K x stroke`; without them, about 2 % off.
+/// friction the moves read, [`hil_sim::identification::commissioning::fit_spring`] reads
+/// the rate within 0.1 % and the preload within 0.1 % of `K x stroke`; without them, about
+/// 2 % off.
 #[test]
 fn a_hold_that_limit_cycles_reads_the_spring_with_the_armature_s_inertia_taken_out() {
     use core::f64::consts::PI;
-    use hil_sim::commissioning::{fit_spring, Circuit};
-    let (_, a) = hil_sim::actuator::load("product").unwrap();
-    let plant = hil_sim::commissioning::true_plant(&a, None).unwrap();
+    use hil_sim::identification::commissioning::{fit_spring, Circuit};
+    let (_, a) = hil_sim::simulation::actuator::load("product").unwrap();
+    let plant = hil_sim::identification::commissioning::true_plant(&a, None).unwrap();
     let stroke = plant.stroke_m;
     let at = |x: f64| plant.inductance_h(plant.gap_m(x));
     let report = ema::device::commission::Report {
@@ -747,7 +759,7 @@ fn a_hold_that_limit_cycles_reads_the_spring_with_the_armature_s_inertia_taken_o
     let w = 2.0 * PI * 1.1 / window_s;
     let amplitude = 0.01 * stroke;
     let holds = core::array::from_fn(|h| {
-        let centre = hil_sim::actuator::SEQUENCE[h] * stroke;
+        let centre = hil_sim::simulation::actuator::SEQUENCE[h] * stroke;
         let phase = 0.7 * h as f64;
         (0..n)
             .map(|j| {
@@ -762,8 +774,10 @@ fn a_hold_that_limit_cycles_reads_the_spring_with_the_armature_s_inertia_taken_o
     });
     let with = fit_spring(&report, circuit, &holds, dt, Some((m, c)));
     let without = fit_spring(&report, circuit, &holds, dt, None);
-    let rate = |s: &hil_sim::commissioning::Spring| 100.0 * (s.n_per_m / k - 1.0);
-    let preload = |s: &hil_sim::commissioning::Spring| 100.0 * (s.preload_n - f0) / (k * stroke);
+    let rate = |s: &hil_sim::identification::commissioning::Spring| 100.0 * (s.n_per_m / k - 1.0);
+    let preload = |s: &hil_sim::identification::commissioning::Spring| {
+        100.0 * (s.preload_n - f0) / (k * stroke)
+    };
     eprintln!(
         "rate error {:+.4} % (without the inertia {:+.2} %), preload {:+.4} % of K x stroke",
         rate(&with),
@@ -786,9 +800,9 @@ const LIGHT_PILOT_SEED: u64 = 82;
 /// spring within 5 % and the mass within its class, and the actuator time counts every
 /// attempt.
 fn a_slower_attempt_measures(name: &str, seed: u64, first: &str) {
-    use hil_sim::commissioning as c;
+    use hil_sim::identification::commissioning as c;
     use rand::SeedableRng;
-    let (_, a) = hil_sim::actuator::load(name).unwrap();
+    let (_, a) = hil_sim::simulation::actuator::load(name).unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     eprintln!("{name}, seed {seed}");
     let d = holds_on_a_drawn_plant(&a, &mut rng);
@@ -808,7 +822,7 @@ fn a_slower_attempt_measures(name: &str, seed: u64, first: &str) {
     assert!(mass.abs() < c::MASS_CLASS, "{mass}");
     // Every attempt's time: more than one whole attempt's holds.
     let (measured, _) = c::measured(&a, &d.report, None).unwrap();
-    let one_s = hil_sim::actuator::scenario("holds", &measured)
+    let one_s = hil_sim::simulation::actuator::scenario("holds", &measured)
         .unwrap()
         .duration_s;
     assert!(holding.took_s > one_s + 0.01, "{} s", holding.took_s);
@@ -817,7 +831,8 @@ fn a_slower_attempt_measures(name: &str, seed: u64, first: &str) {
 /// A drawn solenoid 27 % lighter than its file: held with the default tuning, the
 /// observer (with the file's mass) carries its velocity on after the light armature has
 /// stopped, and the stuck-sensor monitor ends the holds. The holds run again with a slower
-/// loop ([`hil_sim::commissioning::hold_tuning`]) and measure the spring and the mass.
+/// loop ([`hil_sim::identification::commissioning::hold_tuning`]) and measure the spring
+/// and the mass.
 #[test]
 fn holds_a_monitor_ends_run_again_with_a_slower_loop_and_measure_the_armature() {
     a_slower_attempt_measures("solenoid-12v", LIGHT_SOLENOID_SEED, "position_stuck");

@@ -2,7 +2,7 @@
 //! round-trips through its file; a file that breaks a rule is refused by `tune` with the
 //! rule named.
 
-use hil_sim::drawn::{self, RANGES};
+use hil_sim::analysis::drawn::{self, RANGES};
 
 /// Seed of the drawn sample (printed by the test).
 const SEED: u64 = 0xD7A;
@@ -62,7 +62,7 @@ fn drawn_actuators_obey_the_rules_and_the_ranges_and_round_trip_through_their_fi
             d.name()
         );
         let text = d.text().unwrap();
-        let back = hil_sim::actuator::parse(&text, &d.name()).unwrap();
+        let back = hil_sim::simulation::actuator::parse(&text, &d.name()).unwrap();
         assert_eq!(&back, a, "{}", d.name());
         *circuits.entry(d.circuit).or_insert(0) += 1;
         redrawn += d.redrawn.values().sum::<usize>();

@@ -1,17 +1,18 @@
 //! The product meets its targets on every actuator of the family, under the realistic
-//! conditions of an actuator's evaluation scenario (`hil_sim::actuator::scenario`: 12-bit
-//! converters with 1.5 codes of noise and one sample of delay, velocity estimated, supply
-//! resistance, averaged bridge, the sequence across the stroke), on the nominal plant and
-//! on a fixed-seed sample of plants drawn from the uncertainty set (surfaces anywhere in
-//! the physical bounds, constant or growing with the gap, frozen or energy-consistent
-//! force, R +-20 %, K +-10 %, m +-10 %, friction +-50 %). The 1000-plant runs are
-//! `cargo run -p hil-sim --release -- montecarlo <actuator> --n 1000`.
+//! conditions of an actuator's evaluation scenario
+//! (`hil_sim::simulation::actuator::scenario`: 12-bit converters with 1.5 codes of noise
+//! and one sample of delay, velocity estimated, supply resistance, averaged bridge, the
+//! sequence across the stroke), on the nominal plant and on a fixed-seed sample of plants
+//! drawn from the uncertainty set (surfaces anywhere in the physical bounds, constant or
+//! growing with the gap, frozen or energy-consistent force, R +-20 %, K +-10 %, m +-10 %,
+//! friction +-50 %). The 1000-plant runs are `cargo run -p hil-sim --release -- montecarlo
+//! <actuator> --n 1000`.
 
-use hil_sim::actuator::{self, FAMILY};
-use hil_sim::hal::Adc;
-use hil_sim::montecarlo::montecarlo_with;
-use hil_sim::scenario::{BridgeMode, Sensors};
-use hil_sim::targets::{failing, Targets, Worst};
+use hil_sim::analysis::montecarlo::montecarlo_with;
+use hil_sim::simulation::actuator::{self, FAMILY};
+use hil_sim::simulation::hal::Adc;
+use hil_sim::simulation::scenario::{BridgeMode, Sensors};
+use hil_sim::simulation::targets::{failing, Targets, Worst};
 use hil_sim::{run, Scenario};
 
 /// Seed of the sampled plants.

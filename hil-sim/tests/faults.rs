@@ -5,9 +5,9 @@
 //! of the family, healthy runs raise nothing.
 
 use ema::control::supervisor::Fault;
-use hil_sim::actuator::{self, FAMILY};
-use hil_sim::faults::{cases, evaluate, Case, Outcome, DEADLINE_S};
-use hil_sim::scenario::Injected;
+use hil_sim::analysis::faults::{cases, evaluate, Case, Outcome, DEADLINE_S};
+use hil_sim::simulation::actuator::{self, FAMILY};
+use hil_sim::simulation::scenario::Injected;
 use hil_sim::{run, Scenario};
 
 /// The expected fault within [`DEADLINE_S`] of the injection, the coil current at or
@@ -411,9 +411,12 @@ fn a_frozen_reading_is_observable_once_its_quantity_moves() {
 fn faults_at_random_instants_are_named_on_drawn_plants() {
     const SEED: u64 = 0xfa17_0000_0000_0015;
     println!("seed {SEED:#x}");
-    let spreads =
-        hil_sim::faults::random(&Scenario::product_sequence(20e3, 24.0).unwrap(), 24, SEED)
-            .unwrap();
+    let spreads = hil_sim::analysis::faults::random(
+        &Scenario::product_sequence(20e3, 24.0).unwrap(),
+        24,
+        SEED,
+    )
+    .unwrap();
     assert_eq!(spreads.len(), 11);
     for s in &spreads {
         assert_eq!((s.before, s.not_coasting), (0, 0), "{s:?}");
@@ -451,7 +454,7 @@ fn the_board_s_comparator_switches_the_bridge_off_at_its_level() {
     let healthy = run(&product).unwrap();
     assert!(healthy.samples.iter().all(|s| s.fault.is_none()));
 
-    let mut without = hil_sim::compare::scenario("paper", 20e3, 24.0)
+    let mut without = hil_sim::analysis::compare::scenario("paper", 20e3, 24.0)
         .unwrap()
         .with_duration_s(0.1);
     without.controller.limits.current_trip_a = 14.0;

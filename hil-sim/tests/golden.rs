@@ -14,7 +14,7 @@ fn saved_traces_are_what_the_simulator_records() {
     for case in CASES {
         let path = dir.join(format!("{}.emat", case.name));
         let saved = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let now = hil_sim::golden::generate(case).unwrap();
+        let now = hil_sim::analysis::golden::generate(case).unwrap();
         assert!(
             saved == now,
             "{} is stale: regenerate with `cargo run -p hil-sim --release -- golden`",
@@ -29,10 +29,10 @@ fn saved_traces_are_what_the_simulator_records() {
 #[test]
 fn a_recorded_run_needs_converter_codes() {
     let case = trace::case("practical").unwrap();
-    let sc = hil_sim::golden::scenario(case)
+    let sc = hil_sim::analysis::golden::scenario(case)
         .unwrap()
-        .with_sensors(hil_sim::scenario::Sensors::Ideal);
-    let mut rec = hil_sim::sim::Recording::default();
-    let e = hil_sim::sim::run_with(&sc, Some(&mut rec)).unwrap_err();
+        .with_sensors(hil_sim::simulation::scenario::Sensors::Ideal);
+    let mut rec = hil_sim::simulation::sim::Recording::default();
+    let e = hil_sim::simulation::sim::run_with(&sc, Some(&mut rec)).unwrap_err();
     assert!(e.to_string().contains("sensors"), "{e}");
 }

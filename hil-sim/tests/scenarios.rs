@@ -7,10 +7,12 @@
 //! bridge, step from x0 = (1 mm, 0, 0) to 3 mm.
 
 use ema::control::supervisor::Fault;
-use hil_sim::hal::{self, Adc, Switches};
-use hil_sim::plant::ForceModel;
-use hil_sim::scenario::{BridgeMode, Reference, Sensors, StepAt, TruePlant, Uncertainty};
-use hil_sim::sim::{Stepper, Truth};
+use hil_sim::simulation::hal::{self, Adc, Switches};
+use hil_sim::simulation::plant::ForceModel;
+use hil_sim::simulation::scenario::{
+    BridgeMode, Reference, Sensors, StepAt, TruePlant, Uncertainty,
+};
+use hil_sim::simulation::sim::{Stepper, Truth};
 use hil_sim::{montecarlo, run, Scenario};
 
 /// The paper's example at a 1 MHz ISR, close to the continuous-time law. An independent
@@ -289,7 +291,7 @@ fn halving_the_step_changes_the_trajectory_by_less_than_1e_5() {
 #[test]
 fn montecarlo_is_deterministic_and_draws_distinct_plants() {
     let sc = Scenario::paper(100_000.0).with_duration_s(0.2);
-    let a = hil_sim::montecarlo::montecarlo_with(&sc, 6, 42, false).unwrap();
+    let a = hil_sim::analysis::montecarlo::montecarlo_with(&sc, 6, 42, false).unwrap();
     let b = montecarlo(&sc, 6, 42).unwrap();
     assert_eq!(a, b);
     assert_eq!(
@@ -309,7 +311,7 @@ fn montecarlo_is_deterministic_and_draws_distinct_plants() {
             assert_eq!(run(&single).unwrap().metrics, d.metrics);
         }
     }
-    let c = hil_sim::montecarlo::montecarlo_with(&sc, 6, 43, false).unwrap();
+    let c = hil_sim::analysis::montecarlo::montecarlo_with(&sc, 6, 43, false).unwrap();
     assert_ne!(a[0].plant, c[0].plant);
 }
 
@@ -329,13 +331,13 @@ fn drawn_plants_rarely_leave_the_bounds_and_are_flagged_when_they_do() {
     let mut flagged = 0;
     for _ in 0..20_000 {
         let p = u.draw(&nominal, &mut rng);
-        let c = hil_sim::metrics::bounds_check(&nominal, &p).unwrap();
+        let c = hil_sim::simulation::metrics::bounds_check(&nominal, &p).unwrap();
         if !c.brackets {
             flagged += 1;
             let growing = p
                 .gaps
                 .iter()
-                .any(|g| matches!(g, hil_sim::plant::Surface::Rectangular { .. }));
+                .any(|g| matches!(g, hil_sim::simulation::plant::Surface::Rectangular { .. }));
             assert!(p.force == ForceModel::EnergyConsistent && growing, "{p:?}");
             assert!(c.mu_lo_ratio_min < 1.0 && c.mu_lo_ratio_min > 0.95);
             assert!(c.warning.unwrap().contains("mu_lo"));

@@ -221,7 +221,7 @@ pub struct State {
 /// every half period, well faster than the armature can follow (the mean pull is that
 /// of the hold). The flux the steps take, the voltage's integral less the resistive
 /// drop, over the current's change is the inductance at the hold's position
-/// (`hil_sim::commissioning`). A stopped probe adds nothing, bit for bit.
+/// (`hil_sim::identification::commissioning`). A stopped probe adds nothing, bit for bit.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(all(target_os = "none", feature = "defmt"), derive(defmt::Format))]
 pub struct Probe {

@@ -1,12 +1,12 @@
 //! `hil-sim actuators [name]`: the family of actuators kept in the repository, with the
 //! time scales their settings come from, or the file of one (a starting point for a file
 //! of your own); `hil-sim actuators --draw N --seed S`: `N` drawn actuators
-//! ([`crate::drawn`]), each written as a file.
+//! ([`crate::analysis::drawn`]), each written as a file.
 
 use std::io::Write;
 
-use crate::actuator;
-use crate::report::{sig, Table};
+use crate::analysis::report::{sig, Table};
+use crate::simulation::actuator;
 
 /// Arguments of `actuators`.
 #[derive(Clone, Debug, Default, PartialEq, Eq, clap::Args)]
@@ -93,7 +93,7 @@ pub fn family_table() -> anyhow::Result<Table> {
 /// # Errors
 /// A draw the rules never accept; a failed write.
 pub fn draw(n: usize, seed: u64, dir: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()> {
-    let drawn = crate::drawn::draw(n, seed)?;
+    let drawn = crate::analysis::drawn::draw(n, seed)?;
     std::fs::create_dir_all(dir)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let t = drawn_table(&drawn)?;
@@ -105,7 +105,7 @@ pub fn draw(n: usize, seed: u64, dir: &std::path::Path, out: &mut dyn Write) -> 
     writeln!(
         out,
         "{n} actuators drawn with seed {seed}, written to {} (the ranges and rules: \
-         hil_sim::drawn):",
+         hil_sim::analysis::drawn):",
         dir.display()
     )?;
     write!(out, "{}", t.to_text())?;
@@ -117,7 +117,7 @@ pub fn draw(n: usize, seed: u64, dir: &std::path::Path, out: &mut dyn Write) -> 
 ///
 /// # Errors
 /// A drawn actuator whose time scales do not derive (a defect: the rules accepted it).
-pub fn drawn_table(drawn: &[crate::drawn::Drawn]) -> anyhow::Result<Table> {
+pub fn drawn_table(drawn: &[crate::analysis::drawn::Drawn]) -> anyhow::Result<Table> {
     let mut t = Table::new([
         "name",
         "circuit",

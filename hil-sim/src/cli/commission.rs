@@ -1,10 +1,10 @@
 //! `hil-sim commission <name> [--n N --seed S --tune]`: the board's commissioning routine
 //! on an actuator's file against N plants drawn wider than it (see
-//! [`crate::commissioning::Draw`]), in parallel: the identification errors' median, 99th
-//! percentile and maximum, the actuator time, the largest coil current, the endings; then
-//! the spring, the mass and the friction measured from closed-loop holds
-//! ([`crate::commissioning::mechanics`]); with
-//! `--tune`, each commissioned actuator tuned and run in closed loop on its true plant.
+//! [`crate::identification::commissioning::Draw`]), in parallel: the identification errors'
+//! median, 99th percentile and maximum, the actuator time, the largest coil current, the
+//! endings; then the spring, the mass and the friction measured from closed-loop holds
+//! ([`crate::identification::commissioning::mechanics`]); with `--tune`, each commissioned
+//! actuator tuned and run in closed loop on its true plant.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -12,9 +12,9 @@ use std::io::Write;
 use rand::SeedableRng;
 use rayon::prelude::*;
 
-use crate::actuator;
-use crate::commissioning::{self, Draw};
-use crate::report::{sig, Table};
+use crate::analysis::report::{sig, Table};
+use crate::identification::commissioning::{self, Draw};
+use crate::simulation::actuator;
 
 /// Arguments of `commission`.
 #[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
@@ -90,7 +90,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                 let held = m
                     .inductance_errors(&plant)
                     .iter()
-                    .fold(0.0, |w, e| crate::targets::worse(w, e.abs()));
+                    .fold(0.0, |w, e| crate::simulation::targets::worse(w, e.abs()));
                 // The circuit the file written with the holds carries.
                 let fitted = commissioning::measured(&a, &r, Some(m))
                     .and_then(|(f, _)| commissioning::curve_error(&f, &plant))

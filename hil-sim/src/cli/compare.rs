@@ -1,14 +1,14 @@
 //! `hil-sim compare`: the paper's law, its boundary-layer variant and the practical law at
 //! 10, 20 and 50 kHz on 24, 48 and 150 V supplies, under the product's realistic
-//! conditions ([`crate::compare`]); a table of settling, overshoot, error, ripple, peak
+//! conditions ([`crate::analysis::compare`]); a table of settling, overshoot, error, ripple, peak
 //! current and voltage with pass or fail against the targets, as text, CSV and a figure.
 
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::compare::{grid, Row, LAWS, RATES_HZ};
-use crate::report::{self, plot::Figure, plot::Panel, plot::Series, sig, Table};
-use crate::targets::Targets;
+use crate::analysis::compare::{grid, Row, LAWS, RATES_HZ};
+use crate::analysis::report::{self, plot::Figure, plot::Panel, plot::Series, sig, Table};
+use crate::simulation::targets::Targets;
 
 /// Arguments of `compare`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
@@ -129,7 +129,11 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     );
     let rows = grid(args.duration_s)?;
     let table = table(&rows);
-    let t = Targets::for_scenario(&crate::compare::scenario("practical", 20e3, 24.0)?);
+    let t = Targets::for_scenario(&crate::analysis::compare::scenario(
+        "practical",
+        20e3,
+        24.0,
+    )?);
     writeln!(
         out,
         "the product's actuator (physical convention), step 1 -> 3 mm, {} s, nominal plant, \

@@ -1,15 +1,16 @@
-//! `hil-sim drawn --n N --seed S --plants P`: `N` drawn actuators ([`crate::drawn`]), each
-//! tuned as a user would and judged out of sample ([`crate::outofsample`]): whether `tune`
-//! chose gains (or why not), the Monte Carlo of `P` plants on each tuned one, the fault
-//! cases on each. Prints the table, what passed, and the distribution of the tuning time;
-//! writes the table as CSV and Markdown. `hil-sim actuators --draw N --seed S` writes the
-//! same actuators as files, to tune or run one by hand.
+//! `hil-sim drawn --n N --seed S --plants P`: `N` drawn actuators
+//! ([`crate::analysis::drawn`]), each tuned as a user would and judged out of sample
+//! ([`crate::analysis::outofsample`]): whether `tune` chose gains (or why not), the Monte
+//! Carlo of `P` plants on each tuned one, the fault cases on each. Prints the table, what
+//! passed, and the distribution of the tuning time; writes the table as CSV and Markdown.
+//! `hil-sim actuators --draw N --seed S` writes the same actuators as files, to tune or run
+//! one by hand.
 
 use std::fmt::Write as _;
 use std::io::Write;
 
-use crate::outofsample::{self, Verdict};
-use crate::report::{self, sig, Table};
+use crate::analysis::outofsample::{self, Verdict};
+use crate::analysis::report::{self, sig, Table};
 
 /// Arguments of `drawn`.
 #[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
@@ -19,13 +20,13 @@ pub struct Args {
     pub n: usize,
     /// Seed of the actuators (default: the judging seed, apart from every seed used to
     /// write the rules).
-    #[arg(long, default_value_t = crate::seeds::DRAWN_JUDGE)]
+    #[arg(long, default_value_t = crate::analysis::seeds::DRAWN_JUDGE)]
     pub seed: u64,
     /// Plants drawn per tuned actuator.
     #[arg(long, default_value_t = 1000)]
     pub plants: usize,
     /// Seed of the plants (default: the results' seed, apart from tune's validation).
-    #[arg(long, default_value_t = crate::seeds::RESULTS)]
+    #[arg(long, default_value_t = crate::analysis::seeds::RESULTS)]
     pub plant_seed: u64,
     /// Hide the progress messages.
     #[arg(long)]
@@ -39,9 +40,9 @@ impl Default for Args {
     fn default() -> Self {
         Self {
             n: 20,
-            seed: crate::seeds::DRAWN_JUDGE,
+            seed: crate::analysis::seeds::DRAWN_JUDGE,
             plants: 1000,
-            plant_seed: crate::seeds::RESULTS,
+            plant_seed: crate::analysis::seeds::RESULTS,
             quiet: false,
             output: super::Output::default(),
         }
@@ -68,7 +69,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     anyhow::ensure!(args.plants > 0, "--plants = 0: draw at least one plant");
     let mut verdicts = Vec::with_capacity(args.n);
     for index in 0..args.n {
-        let d = crate::drawn::draw_one(args.seed, index)?;
+        let d = crate::analysis::drawn::draw_one(args.seed, index)?;
         if !args.quiet {
             writeln!(out, "{} ({}) ...", d.name(), d.circuit)?;
         }

@@ -1,4 +1,4 @@
-//! `hil-sim faults [ACTUATOR]`: the fault-injection scenarios ([`crate::faults`]) on an
+//! `hil-sim faults [ACTUATOR]`: the fault-injection scenarios ([`crate::analysis::faults`]) on an
 //! actuator (a family member or a file; the product's by default): for each injected
 //! fault, the fault the supervisor latched, how long after the injection, the peak coil
 //! current against the trip level, and whether the bridge coasted from then on.
@@ -6,8 +6,8 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::faults::{random, table as run_cases, Outcome as Case, Spread, DEADLINE_S};
-use crate::report::{self, sig, Table};
+use crate::analysis::faults::{random, table as run_cases, Outcome as Case, Spread, DEADLINE_S};
+use crate::analysis::report::{self, sig, Table};
 
 /// Arguments of `faults`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
@@ -148,7 +148,7 @@ pub fn random_table(spreads: &[Spread]) -> Table {
 /// # Errors
 /// A scenario that does not validate; a failed write.
 pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
-    let (name, mut act) = crate::actuator::load(&args.actuator)?;
+    let (name, mut act) = crate::simulation::actuator::load(&args.actuator)?;
     #[expect(clippy::cast_possible_truncation)]
     if let Some(r) = args.rate_hz {
         act = act.with_rate_hz(r as f32);
@@ -157,7 +157,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     if let Some(v) = args.supply_v {
         act = act.with_supply_v(v as f32);
     }
-    let base = crate::actuator::scenario(&name, &act)?;
+    let base = crate::simulation::actuator::scenario(&name, &act)?;
     if let Some(n) = args.random {
         anyhow::ensure!(n > 0, "--random 0: inject at least once");
         let spreads = random(&base, n, args.seed)?;

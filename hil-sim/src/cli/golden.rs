@@ -1,11 +1,11 @@
 //! `hil-sim golden`: records the golden traces the Cortex-M4F must reproduce bit for bit
-//! ([`crate::golden`]), one per reference case of `ema::control::trace::CASES`, into
+//! ([`crate::analysis::golden`]), one per reference case of `ema::control::trace::CASES`, into
 //! `tests/golden/` of the workspace (or `--dir`).
 
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::golden::write_all;
+use crate::analysis::golden::write_all;
 
 /// Arguments of `golden`.
 #[derive(Clone, Debug, PartialEq, Eq, clap::Args)]

@@ -2,7 +2,7 @@
 //! `Args` and a `run(&Args, &mut dyn Write)` that prints to the writer it is given and
 //! returns what it measured, so that tests call it without a subprocess. Files go to
 //! `out/<scenario-name>/` under the current directory unless `--out` says otherwise
-//! ([`Output`]); tables, traces and figures are written with [`crate::report`].
+//! ([`Output`]); tables, traces and figures are written with [`crate::analysis::report`].
 //!
 //! To add a subcommand: a module here with `Args` and `run`, a variant in [`Command`], an
 //! arm in [`dispatch`].

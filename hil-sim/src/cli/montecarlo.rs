@@ -1,34 +1,36 @@
 //! `hil-sim montecarlo <scenario> --n N --seed S`: the scenario over `N` plants drawn from
 //! the uncertainty set (the scenario's own when its plant is `kind = "drawn"`, else the
 //! default set), in parallel with a progress bar ([`crate::montecarlo()`]); prints the
-//! worst case of each metric and the product's targets ([`crate::targets`]: how many
+//! worst case of each metric and the product's targets ([`crate::simulation::targets`]: how many
 //! draws miss each) and writes every draw (plant parameters and metrics) as CSV.
 //!
 //! RK4 substeps: unless `--substeps` is given, the fewest per period (at most the
 //! scenario's own) whose every period, replayed from draw 0's recorded states, stays
-//! within [`TOLERANCE_REL`] of a 1 us RK4 solution ([`crate::accuracy::fewest_substeps`]).
-//! After the draws, the draws that hold a worst case ([`worst_draws`]) are checked the same
-//! way; when one needs more substeps, the draws run again with that many, and the output
-//! says so.
+//! within [`TOLERANCE_REL`] of a 1 us RK4 solution
+//! ([`crate::analysis::accuracy::fewest_substeps`]). After the draws, the draws that hold a
+//! worst case ([`worst_draws`]) are checked the same way; when one needs more substeps, the
+//! draws run again with that many, and the output says so.
 //!
 //! `--sensor-errors` draws each plant's converter gain and offset errors from the
-//! calibration class ([`crate::hal::CalibrationClass`], +-0.5 % and +-2 codes per channel);
-//! the targets stay judged on the true position, and the output gives apart the sensor's
-//! share of the steady error ([`crate::hal::sensor_position_error_m`]) and the draws that
-//! miss only because of it. `--spread K` draws the plant beyond the controller's
-//! tolerances (spreads times `K`) and sorts every draw into pass, named fault with the
-//! bridge coasting, or silent failure ([`Class`]).
+//! calibration class ([`crate::simulation::hal::CalibrationClass`], +-0.5 % and +-2 codes
+//! per channel); the targets stay judged on the true position, and the output gives apart
+//! the sensor's share of the steady error
+//! ([`crate::simulation::hal::sensor_position_error_m`]) and the draws that miss only
+//! because of it. `--spread K` draws the plant beyond the controller's tolerances (spreads
+//! times `K`) and sorts every draw into pass, named fault with the bridge coasting, or
+//! silent failure ([`Class`]).
 
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::accuracy::{self, TOLERANCE_REL};
-use crate::hal::CalibrationClass;
-use crate::montecarlo::{montecarlo_opts, Options};
-use crate::plant::{ForceModel, Surface};
-use crate::report::{self, sig, Table, METRICS_COLUMNS};
-use crate::targets::{Targets, Worst};
-use crate::{catalog, Draw, Segment};
+use crate::analysis::accuracy::{self, TOLERANCE_REL};
+use crate::analysis::montecarlo::{montecarlo_opts, Options};
+use crate::analysis::report::{self, sig, Table, METRICS_COLUMNS};
+use crate::simulation::catalog;
+use crate::simulation::hal::CalibrationClass;
+use crate::simulation::plant::{ForceModel, Surface};
+use crate::simulation::targets::{Targets, Worst};
+use crate::{Draw, Segment};
 
 /// Arguments of `montecarlo`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]

@@ -21,11 +21,12 @@ use std::path::PathBuf;
 
 use ema::control::law;
 
-use crate::report::{
+use crate::analysis::report::{
     self, decimated, figures, figures::Case, plot::Legend, sig, Figure, Panel, Series, Table,
 };
-use crate::scenario::{Initial, Reference};
-use crate::{catalog, Run, Sample, Scenario, Segment};
+use crate::simulation::catalog;
+use crate::simulation::scenario::{Initial, Reference};
+use crate::{Run, Sample, Scenario, Segment};
 
 /// Arguments of `paper` (also what runs without a subcommand).
 #[derive(Clone, Debug, PartialEq, Eq, clap::Args)]

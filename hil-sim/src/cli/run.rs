@@ -4,8 +4,9 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::report::{self, decimated, figures, figures::Case, sig, Table};
-use crate::{catalog, Metrics, Scenario};
+use crate::analysis::report::{self, decimated, figures, figures::Case, sig, Table};
+use crate::simulation::catalog;
+use crate::{Metrics, Scenario};
 
 /// Arguments of `run`.
 #[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
@@ -48,8 +49,8 @@ pub fn describe(sc: &Scenario) -> String {
         sig(sc.supply.voltage_v, 4),
         sc.controller.law.name(),
         match sc.sensors {
-            crate::scenario::Sensors::Ideal => "ideal",
-            crate::scenario::Sensors::Adc(_) => "converter-model",
+            crate::simulation::scenario::Sensors::Ideal => "ideal",
+            crate::simulation::scenario::Sensors::Adc(_) => "converter-model",
         },
         sc.bridge.mode,
         sig(sc.duration_s, 4),

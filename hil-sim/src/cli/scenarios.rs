@@ -3,7 +3,7 @@
 
 use std::io::Write;
 
-use crate::catalog;
+use crate::simulation::catalog;
 
 /// Arguments of `scenarios`.
 #[derive(Clone, Debug, Default, PartialEq, Eq, clap::Args)]

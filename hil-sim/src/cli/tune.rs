@@ -1,5 +1,5 @@
 //! `hil-sim tune <actuator>`: designs the practical law's gains for an actuator
-//! ([`crate::tune`]): a search space from its time scales, Theorem 1 for every candidate,
+//! ([`crate::analysis::tune`]): a search space from its time scales, Theorem 1 for every candidate,
 //! screening on the nominal plant, the corner plants of the uncertainty set at three
 //! interrupt rates, the minimax choice and a Monte Carlo validation. Writes the tuned
 //! actuator file (the input with a `[tuning]` section) and every candidate as CSV; when no
@@ -9,9 +9,11 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::actuator;
-use crate::report::{self, sig, Table};
-use crate::tune::{self, Space};
+use crate::analysis::report::{self, sig, Table};
+use crate::analysis::tune::{self, Space};
+use crate::simulation::actuator;
+
+pub use crate::analysis::tune::{default_rates, BOARD_RATES_HZ, DEFAULT_VALIDATE};
 
 /// Arguments of `tune`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
@@ -39,33 +41,6 @@ pub struct Args {
     /// Output folder (default: `out/<actuator>-tune`).
     #[command(flatten)]
     pub output: super::Output,
-}
-
-/// Plants drawn to validate a candidate, per rate, unless told otherwise.
-pub const DEFAULT_VALIDATE: usize = 100;
-
-/// Control rates the board offers between 10 and 50 kHz (each divides TIM1's 84 MHz
-/// half-clock, so a centre-aligned period is a whole number of counts) \[Hz\].
-pub const BOARD_RATES_HZ: [f64; 5] = [10e3, 20e3, 25e3, 40e3, 50e3];
-
-/// The default rates: the actuator's own, 20 kHz (the rate the product's Monte Carlo
-/// and fault tables are run at), and the one of [`BOARD_RATES_HZ`] nearest to the
-/// actuator's own by ratio (the lower first on a tie): three rates, so that the gains hold
-/// when the rate moves to a neighbour.
-#[must_use]
-pub fn default_rates(own_hz: f64) -> Vec<f64> {
-    let mut out = vec![own_hz];
-    let reference = 20e3;
-    if (reference - own_hz).abs() > 0.5 {
-        out.push(reference);
-    }
-    let mut others: Vec<f64> = BOARD_RATES_HZ
-        .into_iter()
-        .filter(|r| out.iter().all(|o| (r - o).abs() > 0.5))
-        .collect();
-    others.sort_by(|a, b| (a / own_hz).ln().abs().total_cmp(&(b / own_hz).ln().abs()));
-    out.extend(others.into_iter().take(3 - out.len()));
-    out
 }
 
 /// What `tune` chose and wrote.

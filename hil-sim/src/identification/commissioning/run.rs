@@ -1,0 +1,367 @@
+//! Commissionings of simulated actuators, the plants they run on, what they are judged
+//! against, and the commissioned actuator's closed loop.
+
+use ema::control::actuator::Actuator;
+use ema::control::bridge::HBridge;
+use ema::device::commission::{Abort, Identification, Plan, Report, Step};
+use rand::Rng;
+
+use super::{measured, Mechanics};
+use crate::simulation::board::scenario;
+use crate::simulation::hal::{self, Adc};
+use crate::simulation::plant::Params;
+use crate::simulation::scenario::{Scenario, Sensors, TruePlant};
+use crate::simulation::sim::Stepper;
+use crate::simulation::targets::{Targets, Worst};
+use crate::simulation::Error;
+
+/// An actuator drawn off its file, as a user's is: the airgap surfaces, the coil's
+/// resistance, the spring rate, the mass each within +-30 % (a preload the file gives
+/// with the spring's rate; where it gives none, an unknown one up to a fifth of the
+/// spring's force over the stroke), the friction within +-50 %, and a position sensor
+/// whose offset and gain are each within +-3 % (of the stroke, of the span), and the
+/// converter's noise its own realisation: the inductances come from a few noisy current
+/// samples of a decay, so one noise sequence shared by every draw would give every draw
+/// the same error and hide its spread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Draw {
+    /// Factors on the file's surfaces, resistance, spring rate, mass and friction.
+    pub factors: Factors,
+    /// The unknown preload of a file that gives none, as a share of the spring's force
+    /// over the stroke \[-\].
+    pub preload_share: f64,
+    /// The position sensor's gain error \[-\].
+    pub gain_error: f64,
+    /// Its offset as a share of the stroke \[-\].
+    pub offset_share: f64,
+    /// Seed of the converter's noise.
+    pub noise_seed: u64,
+}
+
+/// The factors a [`Draw`] puts on the file's values \[-\].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Factors {
+    /// On the airgap's surfaces.
+    pub surfaces: f64,
+    /// On the coil's resistance.
+    pub resistance: f64,
+    /// On the spring's rate.
+    pub spring: f64,
+    /// On the mass.
+    pub mass: f64,
+    /// On the friction.
+    pub friction: f64,
+}
+
+impl Factors {
+    /// Every factor 1: the file's values.
+    pub const NONE: Self = Self {
+        surfaces: 1.0,
+        resistance: 1.0,
+        spring: 1.0,
+        mass: 1.0,
+        friction: 1.0,
+    };
+}
+
+impl Draw {
+    /// One draw.
+    pub fn new<R: Rng + ?Sized>(rng: &mut R) -> Self {
+        let mut f = |s: f64| rng.random_range(1.0 - s..1.0 + s);
+        let factors = Factors {
+            surfaces: f(0.3),
+            resistance: f(0.3),
+            spring: f(0.3),
+            mass: f(0.3),
+            friction: f(0.5),
+        };
+        Self {
+            factors,
+            preload_share: rng.random_range(0.0..0.2),
+            gain_error: rng.random_range(-0.03..0.03),
+            offset_share: rng.random_range(-0.03..0.03),
+            noise_seed: rng.random(),
+        }
+    }
+
+    /// The position sensor's gain error \[-\] and offset \[code\] for a stroke of `stroke_m`
+    /// read in codes of `code_m`.
+    #[must_use]
+    pub fn position_error(&self, stroke_m: f64, code_m: f64) -> (f64, f64) {
+        (self.gain_error, self.offset_share * stroke_m / code_m)
+    }
+
+    /// `plant` (the file's) drawn.
+    #[must_use]
+    pub fn apply(&self, plant: &Params) -> Params {
+        let Factors {
+            surfaces,
+            resistance: r,
+            spring: k,
+            mass: m,
+            friction,
+        } = self.factors;
+        let mut p = plant.clone();
+        p.scale_surfaces(surfaces);
+        p.resistance_ohm *= r;
+        p.spring_n_per_m *= k;
+        p.mass_kg *= m;
+        p.friction_n_s_per_m *= friction;
+        p.preload_n = if p.preload_n > 0.0 {
+            p.preload_n * k
+        } else {
+            self.preload_share * p.spring_n_per_m * p.stroke_m
+        };
+        p
+    }
+}
+
+/// One commissioning and what it is judged against.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Outcome {
+    /// The routine's result.
+    pub report: Result<Report, Abort>,
+    /// Actuator time it took \[s\].
+    pub took_s: f64,
+    /// Largest true coil current \[A\].
+    pub peak_a: f64,
+    /// The plant's resistance \[ohm\].
+    pub resistance_ohm: f64,
+    /// The plant's inductance at the open and the closed stop \[H\].
+    pub inductance_h: [f64; 2],
+    /// What the file's calibration reads with the armature at each stop, noise and
+    /// quantisation aside \[m\].
+    pub ends_m: [f64; 2],
+    /// One position code \[m\].
+    pub code_m: f64,
+    /// Largest relative error over the stroke of the inductance the routine's two stops'
+    /// inductances model ([`curve_error`] of the file [`measured`] writes without the
+    /// holds) \[-\]; NaN for a commissioning that stopped.
+    pub curve_error: f64,
+}
+
+/// What a commissioning read wrong ([`Outcome::errors`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Errors {
+    /// The resistance's error, relative \[-\].
+    pub resistance: f64,
+    /// The inductance's error at the open stop, relative \[-\].
+    pub inductance_open: f64,
+    /// The inductance's error at the closed stop, relative \[-\].
+    pub inductance_closed: f64,
+    /// The inductance curve's over the stroke ([`Outcome::curve_error`], unsigned) \[-\].
+    pub curve: f64,
+    /// The open stop reading's error \[position codes\].
+    pub open_codes: f64,
+    /// The closed stop reading's error \[position codes\].
+    pub closed_codes: f64,
+}
+
+impl Outcome {
+    /// Relative errors of the resistance, the two inductances and the inductance curve
+    /// over the stroke, and the end stops' errors in position codes; `None` for a
+    /// commissioning that stopped.
+    #[must_use]
+    pub fn errors(&self) -> Option<Errors> {
+        let r = self.report.ok()?;
+        let rel = |got: f32, want: f64| f64::from(got) / want - 1.0;
+        let codes = |got: f32, want: f64| (f64::from(got) - want).abs() / self.code_m;
+        Some(Errors {
+            resistance: rel(r.resistance.ohm, self.resistance_ohm),
+            inductance_open: rel(r.inductance.open_h, self.inductance_h[0]),
+            inductance_closed: rel(r.inductance.closed_h, self.inductance_h[1]),
+            curve: self.curve_error,
+            open_codes: codes(r.ends.open_m, self.ends_m[0]),
+            closed_codes: codes(r.ends.closed_m, self.ends_m[1]),
+        })
+    }
+}
+
+/// The plant of actuator `a`'s file, or `draw`n from it.
+///
+/// # Errors
+/// An actuator whose settings do not derive.
+pub fn true_plant(a: &Actuator, draw: Option<&Draw>) -> Result<Params, Error> {
+    Ok(plant_of(&scenario(a, true)?, draw))
+}
+
+/// The plant of the board scenario `sc`, or `draw`n from it.
+pub(super) fn plant_of(sc: &Scenario, draw: Option<&Draw>) -> Params {
+    let file = sc.plant.resolve(&sc.controller.plant);
+    draw.map_or_else(|| file.clone(), |d| d.apply(&file))
+}
+
+/// Plants a tuning is validated on in [`closed_loop`] (the tune command's default is 100:
+/// this runs once per commissioned actuator).
+pub const CLOSED_LOOP_VALIDATION: usize = 20;
+
+/// What a commissioned actuator does once tuned, in closed loop on its true plant.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ClosedLoop {
+    /// No tuning meets every target on the measured actuator's corner plants: the tune's
+    /// diagnosis.
+    Untuned(String),
+    /// The actuator's evaluation sequence on its true plant.
+    Ran {
+        /// Its worst metrics.
+        worst: Worst,
+        /// The targets they are judged by.
+        targets: Targets,
+    },
+}
+
+impl ClosedLoop {
+    /// The targets missed (`untuned` when no tuning was found).
+    #[must_use]
+    pub fn misses(&self) -> Vec<&'static str> {
+        match self {
+            ClosedLoop::Untuned(_) => vec!["untuned"],
+            ClosedLoop::Ran { worst, targets } => worst.misses(targets),
+        }
+    }
+}
+
+/// Tunes the actuator `report` (and `mechanics`, when measured) measured on file `a`
+/// ([`measured`]) at the board's rate, as `bench commission --tune` does, and runs its
+/// evaluation sequence on the true `plant`, the converter with its typical noise but no
+/// gain or offset error (the end stops are not yet applied to the calibration, so a
+/// sensor's own error would stay in the position).
+///
+/// # Errors
+/// Measured values no actuator can have; settings that do not derive.
+pub fn closed_loop(
+    a: &Actuator,
+    report: &Report,
+    mechanics: Option<&Mechanics>,
+    plant: &Params,
+) -> Result<ClosedLoop, Error> {
+    let (m, _) = measured(a, report, mechanics)?;
+    let rate = f64::from(a.board.rate_hz);
+    let space = crate::analysis::tune::Space::for_actuator(&m, rate)?;
+    let tuned = crate::analysis::tune::tune(
+        "commissioned",
+        &m,
+        &[rate],
+        &space,
+        1,
+        CLOSED_LOOP_VALIDATION,
+    )?;
+    let Some(t) = tuned.tuned else {
+        return Ok(ClosedLoop::Untuned(
+            tuned.refusal.map(|r| r.to_string()).unwrap_or_default(),
+        ));
+    };
+    let mut sc = crate::simulation::actuator::scenario("commissioned", &t)?;
+    sc.plant = TruePlant::Given(plant.clone());
+    let run = crate::simulation::sim::run(&sc)?;
+    let targets = Targets::for_scenario(&sc);
+    Ok(ClosedLoop::Ran {
+        worst: Worst::of([&run.metrics], &targets),
+        targets,
+    })
+}
+
+/// Commissions actuator `a` (its file), the plant the file's or `draw`n from it.
+///
+/// # Errors
+/// An actuator whose settings do not derive.
+pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
+    run_on(a, &plant_of(&scenario(a, true)?, draw), draw)
+}
+
+/// Commissions actuator `a` (its file) on `plant`, its position sensor and its converter's
+/// noise `draw`n as [`run`]'s.
+///
+/// # Errors
+/// An actuator whose settings do not derive; a plant that does not validate.
+pub fn run_on(a: &Actuator, plant: &Params, draw: Option<&Draw>) -> Result<Outcome, Error> {
+    let mut sc = scenario(a, true)?;
+    if let (Sensors::Adc(adc), Some(d)) = (&mut sc.sensors, draw) {
+        adc.seed = d.noise_seed;
+    }
+    let plant = plant.clone();
+    let mut stepper = Stepper::for_scenario(&sc, plant.clone(), sc.integration.substeps)?;
+    let mut converter = match &sc.sensors {
+        Sensors::Adc(adc) => adc.start(&sc.controller.sense),
+        Sensors::Ideal => Adc::default().start(&sc.controller.sense),
+    };
+    let position = sc.controller.sense.position;
+    let code_m = f64::from(position.scale);
+    let (gain, offset_code) = draw.map_or((0.0, 0.0), |d| d.position_error(plant.stroke_m, code_m));
+    converter.set_position_error(gain, offset_code);
+    let (pwm, dir, en, lines) = hal::bridge_io(sc.bridge.max_duty);
+    let Ok(mut bridge) = HBridge::new(pwm, dir, en);
+    let cfg = sc.controller.build().map_err(Error::Controller)?;
+    // As the board's dispatcher plans it (`ema::device`).
+    let plan = Plan::for_actuator(a, a.board.rate_hz).map_err(Error::Actuator)?;
+    let mut id = Identification::new(plan);
+    let (mut applied, mut peak_a) = (0.0_f32, 0.0_f64);
+    let rate = f64::from(a.board.rate_hz);
+    let mut report = Err(Abort::Stopped);
+    let mut ticks = 0_u64;
+    // Ten times the plan without restarts: more is a routine that does not end.
+    while ticks < 10 * plan.ticks() {
+        ticks += 1;
+        let truth = stepper.sample();
+        peak_a = peak_a.max(truth.i_a.abs());
+        let frame = converter.sample(truth.x_m, truth.i_a, truth.vbus_v);
+        let Ok(m) = cfg.sense().convert(&frame) else {
+            // A reading the board would latch as a fault.
+            report = Err(Abort::Fault);
+            break;
+        };
+        match id.step(&m, applied) {
+            Step::Drive(u) => {
+                // The mock pins cannot fail.
+                applied = bridge
+                    .apply_clear(u, m.vbus_v, cfg.max_modulation())
+                    .map_or(0.0, |d| d.u_v);
+            }
+            Step::Done(r) => {
+                report = r;
+                break;
+            }
+        }
+        stepper.advance(lines.switches(), sc.bridge.mode);
+    }
+    let ends_m = [0.0, plant.stroke_m].map(|x| x * (1.0 + gain) + offset_code * code_m);
+    // A measured circuit no file can hold has no curve: NaN, over any target.
+    let curve_error = report.as_ref().map_or(f64::NAN, |r| {
+        measured(a, r, None)
+            .and_then(|(m, _)| curve_error(&m, &plant))
+            .unwrap_or(f64::NAN)
+    });
+    Ok(Outcome {
+        report,
+        took_s: ticks as f64 / rate,
+        peak_a,
+        resistance_ohm: plant.resistance_ohm,
+        inductance_h: [0.0, plant.stroke_m].map(|x| plant.inductance_h(plant.gap_m(x))),
+        ends_m,
+        code_m,
+        curve_error,
+    })
+}
+
+/// Positions, evenly spread over the stroke with both stops, at which [`curve_error`]
+/// compares the inductances.
+pub const CURVE_POSITIONS: usize = 17;
+
+/// Largest relative error, over [`CURVE_POSITIONS`] positions, of the inductance that
+/// the actuator file `model` models (one [`measured`] wrote) against `plant`'s \[-\].
+/// Between the stops it is what the written circuit misses of the plant's; NaN
+/// propagates.
+///
+/// # Errors
+/// A file whose circuit no actuator can have.
+#[expect(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
+pub fn curve_error(model: &Actuator, plant: &Params) -> Result<f64, Error> {
+    let model = model.plant().map_err(Error::Actuator)?;
+    Ok((0..CURVE_POSITIONS)
+        .map(|k| {
+            let x = plant.stroke_m * k as f64 / (CURVE_POSITIONS - 1) as f64;
+            let got = model.magnetics.inductance_h(model.gap_m(x as f32));
+            (f64::from(got) / plant.inductance_h(plant.gap_m(x)) - 1.0).abs()
+        })
+        .fold(0.0, crate::simulation::targets::worse))
+}

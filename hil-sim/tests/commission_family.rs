@@ -145,7 +145,9 @@ fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
     let o = hil_sim::identification::commissioning::run(&a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
     let plant = hil_sim::identification::commissioning::true_plant(&a, Some(&draw)).unwrap();
-    let c = hil_sim::identification::commissioning::closed_loop(&a, &report, None, &plant).unwrap();
+    let c =
+        hil_sim::identification::commissioning::closed_loop(&a, &report, None, &plant, Some(&draw))
+            .unwrap();
     eprintln!("seed {PRODUCT_SEED:#x}: {draw:?}\n{c:?}");
     assert_eq!(c.misses(), Vec::<&str>::new(), "{c:?}");
 }
@@ -183,6 +185,8 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
         gain_error: f64::from(t),
         offset_share: f64::from(t),
         noise_seed: hil_sim::simulation::hal::Adc::typical().seed,
+        current: hil_sim::simulation::hal::ChannelError::default(),
+        vbus: hil_sim::simulation::hal::ChannelError::default(),
     };
     let o = hil_sim::identification::commissioning::run(&a, Some(&corner)).unwrap();
     let Some(Errors {
@@ -434,6 +438,8 @@ fn a_weak_magnet_on_a_resistive_coil_has_its_holds_read_within_two_percent() {
         gain_error: 0.0,
         offset_share: 0.0,
         noise_seed: 144,
+        current: hil_sim::simulation::hal::ChannelError::default(),
+        vbus: hil_sim::simulation::hal::ChannelError::default(),
     };
     let report = hil_sim::identification::commissioning::run(&a, Some(&draw))
         .unwrap()
@@ -497,8 +503,14 @@ fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_l
     let (wider, _) =
         hil_sim::identification::commissioning::measured(&a, &d.report, Some(&off)).unwrap();
     assert!(wider.tolerance.surface > 0.42, "{:?}", wider.tolerance);
-    let c = hil_sim::identification::commissioning::closed_loop(&a, &d.report, Some(&m), plant)
-        .unwrap();
+    let c = hil_sim::identification::commissioning::closed_loop(
+        &a,
+        &d.report,
+        Some(&m),
+        plant,
+        Some(&d.draw),
+    )
+    .unwrap();
     eprintln!("{c:?}");
     assert_eq!(c.misses(), Vec::<&str>::new(), "{c:?}");
 }
@@ -619,7 +631,7 @@ fn a_surface_growing_with_the_gap_is_fitted_and_the_commissioned_loop_meets_its_
         panic!("{:?}", fitted.magnetics)
     };
     assert!(fringing_spread > 0.2, "{fringing_spread}");
-    let closed = c::closed_loop(&a, &report, Some(&m), &plant).unwrap();
+    let closed = c::closed_loop(&a, &report, Some(&m), &plant, None).unwrap();
     eprintln!("{closed:?}");
     assert_eq!(closed.misses(), Vec::<&str>::new(), "{closed:?}");
 }
@@ -661,7 +673,7 @@ fn a_two_inductance_file_carries_a_growing_surface_as_its_uncertainty() {
     assert!(k.abs() < 0.02, "{:?}", m.spring);
     assert!(curve > c::SURFACE_CLASS, "{curve}");
     assert!(surface > 0.9 * curve, "{surface} against {curve}");
-    let closed = c::closed_loop(&a, &report, Some(&m), &plant).unwrap();
+    let closed = c::closed_loop(&a, &report, Some(&m), &plant, None).unwrap();
     eprintln!("{closed:?}");
     assert_eq!(closed.misses(), Vec::<&str>::new(), "{closed:?}");
 }

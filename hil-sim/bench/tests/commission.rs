@@ -422,8 +422,14 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
         "{:?}",
         status.params
     );
-    let board = cli::read_params(&mut rig.link).unwrap().actuator;
+    let params = cli::read_params(&mut rig.link).unwrap();
+    let board = params.actuator;
     assert_eq!(board.coil.resistance_ohm, got.resistance.ohm);
+    // And the position sensor's correction from the end stops the report gave.
+    let correction =
+        hil_sim::identification::commissioning::stops_correction(&Actuator::PRODUCT, &got);
+    assert_eq!(params.sensor, correction);
+    assert_ne!(correction, ema::control::sense::PositionCorrection::NONE);
     assert!(matches!(
         board.magnetics,
         ema::control::actuator::Magnetics::Geometry { .. }

@@ -4,7 +4,9 @@
 //! median, 99th percentile and maximum, the actuator time, the largest coil current, the
 //! endings; then the spring, the mass and the friction measured from closed-loop holds
 //! ([`crate::identification::commissioning::mechanics`]); with `--tune`, each commissioned
-//! actuator tuned and run in closed loop on its true plant.
+//! actuator tuned and run in closed loop on its true plant, through the drawn converter
+//! with the position sensor's correction from the end stops applied: the steady error is
+//! judged on the true position.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -27,8 +29,9 @@ pub struct Args {
     /// Seed of the draws (draw k from seed + k).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Also tune each commissioned actuator and run it in closed loop on its true plant
-    /// (see [`commissioning::closed_loop`]): the share that meets every target.
+    /// Also tune each commissioned actuator and run it in closed loop on its true plant,
+    /// its drawn converter and the correction from the end stops (see
+    /// [`commissioning::closed_loop`]): the share that meets every target.
     #[arg(long)]
     pub tune: bool,
 }
@@ -107,7 +110,13 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                 ]
             });
             let closed = if args.tune {
-                Some(commissioning::closed_loop(&a, &r, mechanics, &plant)?)
+                Some(commissioning::closed_loop(
+                    &a,
+                    &r,
+                    mechanics,
+                    &plant,
+                    Some(&draw),
+                )?)
             } else {
                 None
             };
@@ -128,7 +137,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     }
     writeln!(
         out,
-        "{name}: {} plants drawn wider than the file (seed {}): surfaces, R, K, m +-30 %, the file's preload +-30 % (or an unknown one), friction +-50 %, sensor offset and gain +-3 %",
+        "{name}: {} plants drawn wider than the file (seed {}): surfaces, R, K, m +-30 %, the file's preload +-30 % (or an unknown one), friction +-50 %, sensor offset and gain +-3 %, current and bus channels +-0.5 % and +-2 codes",
         args.n, args.seed
     )?;
     let mut t = Table::new([

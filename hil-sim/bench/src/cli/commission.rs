@@ -10,13 +10,15 @@ use ema::device::protocol::{Command, Commissioned, Message, Reply, Value};
 use hil_sim::analysis::report::{self};
 
 use super::{
-    actuator_file, apply_commissioned, measure_mechanics, read_params, status, CommissionArgs,
+    actuator_file, apply_commissioned, correction_sets, measure_mechanics, read_params, set_all,
+    status, value_text, CommissionArgs,
 };
 use crate::fault_name;
 use crate::link::{Link, Port};
 
 /// Runs a commissioning and waits for its outcome; prints it, and with `apply` sets the
-/// measured resistance (the end stops are reported, not yet applied).
+/// measured resistance and the position sensor's correction from the end stops
+/// (`sensor.position_gain`, `sensor.position_offset_codes`).
 ///
 /// # Errors
 /// Refused, stopped (with the board's reason), no outcome within the timeout, or (with
@@ -101,6 +103,7 @@ pub fn commission<P: Port>(
         1e6 * travel_m,
         1e6 * stroke_m
     )?;
+    let correction = hil_sim::identification::commissioning::stops_correction(&file, &report);
     let mechanics = if args.mechanics {
         Some(measure_mechanics(link, &file, &report, out)?)
     } else {
@@ -156,18 +159,22 @@ pub fn commission<P: Port>(
             let tuning = tuned
                 .tuning
                 .ok_or_else(|| anyhow!("{}: no tuning in it", tuned_path.display()))?;
-            apply_commissioned(link, &file, &tuned, &tuning, out)?;
+            apply_commissioned(link, &file, &tuned, &tuning, &correction, out)?;
         }
     } else if args.apply {
-        link.done(Command::Set {
-            name: "coil.resistance_ohm",
-            value: Value::Number(r.ohm),
-        })?;
-        writeln!(
-            out,
-            "coil.resistance_ohm = {} (not stored until `save`)",
-            r.ohm
-        )?;
+        let mut sets = vec![("coil.resistance_ohm", Value::Number(r.ohm))];
+        sets.extend(correction_sets(&correction));
+        if let Err(e) = set_all(link, &sets) {
+            link.done(Command::Load)?;
+            bail!("{e}; the stored parameters are loaded back");
+        }
+        for (name, value) in sets {
+            writeln!(
+                out,
+                "{name} = {} (not stored until `save`)",
+                value_text(name, value)
+            )?;
+        }
     }
     Ok(report)
 }

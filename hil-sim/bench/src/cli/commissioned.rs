@@ -5,6 +5,7 @@ use std::io::Write;
 
 use anyhow::{bail, ensure};
 use ema::control::actuator::{Actuator, Magnetics};
+use ema::control::sense::PositionCorrection;
 use ema::device::commission::Report;
 use ema::device::protocol::{Command, Value};
 use hil_sim::analysis::report::sig;
@@ -140,16 +141,30 @@ pub(super) fn commissioned_sets(
     Ok(sets)
 }
 
-/// Sets the commissioned actuator `measured` and its `tuning` on the board and saves
-/// them; on a refusal the stored parameters are loaded back and nothing is saved.
+/// The `set`s that carry a position sensor's `correction` from the end stops.
+pub(super) fn correction_sets(correction: &PositionCorrection) -> [(&'static str, Value); 2] {
+    [
+        ("sensor.position_gain", Value::Number(correction.gain)),
+        (
+            "sensor.position_offset_codes",
+            Value::Number(correction.offset_codes),
+        ),
+    ]
+}
+
+/// Sets the commissioned actuator `measured`, its `tuning` and the position sensor's
+/// `correction` from the end stops on the board and saves them; on a refusal the stored
+/// parameters are loaded back and nothing is saved.
 pub(super) fn apply_commissioned<P: Port>(
     link: &mut Link<P>,
     board: &Actuator,
     measured: &Actuator,
     tuning: &ema::control::actuator::Tuning,
+    correction: &PositionCorrection,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
-    let sets = commissioned_sets(board, measured, tuning)?;
+    let mut sets = commissioned_sets(board, measured, tuning)?;
+    sets.extend(correction_sets(correction));
     if let Err(e) = set_all(link, &sets) {
         link.done(Command::Load)?;
         bail!("{e}; the stored parameters are loaded back, nothing saved");

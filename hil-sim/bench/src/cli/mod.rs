@@ -42,7 +42,7 @@ pub use capture::{capture, CaptureOutcome};
 use capture::{capture_move, read_capture};
 pub use commission::commission;
 pub use commissioned::{actuator_file, commissioned_params};
-use commissioned::{apply_commissioned, commissioned_sets};
+use commissioned::{apply_commissioned, commissioned_sets, correction_sets};
 pub use console::console;
 use mechanics::measure_mechanics;
 use parameters::save;

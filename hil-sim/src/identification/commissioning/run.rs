@@ -3,12 +3,13 @@
 
 use ema::control::actuator::Actuator;
 use ema::control::bridge::HBridge;
+use ema::control::sense::PositionCorrection;
 use ema::device::commission::{Abort, Identification, Plan, Report, Step};
 use rand::Rng;
 
 use super::{measured, Mechanics};
 use crate::simulation::board::scenario;
-use crate::simulation::hal::{self, Adc};
+use crate::simulation::hal::{self, Adc, CalibrationClass, ChannelError};
 use crate::simulation::plant::Params;
 use crate::simulation::scenario::{Scenario, Sensors, TruePlant};
 use crate::simulation::sim::Stepper;
@@ -19,10 +20,12 @@ use crate::simulation::Error;
 /// resistance, the spring rate, the mass each within +-30 % (a preload the file gives
 /// with the spring's rate; where it gives none, an unknown one up to a fifth of the
 /// spring's force over the stroke), the friction within +-50 %, and a position sensor
-/// whose offset and gain are each within +-3 % (of the stroke, of the span), and the
-/// converter's noise its own realisation: the inductances come from a few noisy current
-/// samples of a decay, so one noise sequence shared by every draw would give every draw
-/// the same error and hide its spread.
+/// whose offset and gain are each within +-3 % (of the stroke, of the span), the current
+/// and bus channels' gain and offset within the converters' class
+/// ([`CalibrationClass::default`]: a current gain error goes straight into the resistance
+/// measured, `R = du / di`), and the converter's noise its own realisation: the
+/// inductances come from a few noisy current samples of a decay, so one noise sequence
+/// shared by every draw would give every draw the same error and hide its spread.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Draw {
     /// Factors on the file's surfaces, resistance, spring rate, mass and friction.
@@ -36,6 +39,10 @@ pub struct Draw {
     pub offset_share: f64,
     /// Seed of the converter's noise.
     pub noise_seed: u64,
+    /// The current channel's gain and offset error.
+    pub current: ChannelError,
+    /// The bus channel's.
+    pub vbus: ChannelError,
 }
 
 /// The factors a [`Draw`] puts on the file's values \[-\].
@@ -81,7 +88,37 @@ impl Draw {
             gain_error: rng.random_range(-0.03..0.03),
             offset_share: rng.random_range(-0.03..0.03),
             noise_seed: rng.random(),
+            current: CalibrationClass::default().draw_channel(rng),
+            vbus: CalibrationClass::default().draw_channel(rng),
         }
+    }
+
+    /// `adc` with this draw's errors on its three channels (their noise kept) and its
+    /// noise seed, for a stroke of `stroke_m` read in position codes of `code_m` of the
+    /// file's calibration, seen through a calibration with `correction` applied.
+    ///
+    /// The simulated converter's ideal transfer is the controller's calibration, so the
+    /// sensor's own transfer is stated against it: a sensor reading `x (1 + e) + o` in the
+    /// file's calibration reads `x (1 + e) / g + (o - o_c)` in one corrected by a gain `g`
+    /// and an offset `o_c` (exactly the same codes).
+    #[must_use]
+    pub fn converter(
+        &self,
+        adc: &Adc,
+        stroke_m: f64,
+        code_m: f64,
+        correction: &PositionCorrection,
+    ) -> Adc {
+        let mut out = *adc;
+        let (gain, offset) = self.position_error(stroke_m, code_m);
+        out.position.gain_error = (1.0 + gain) / f64::from(correction.gain) - 1.0;
+        out.position.offset_code = offset - f64::from(correction.offset_codes);
+        for (ch, e) in [(&mut out.current, self.current), (&mut out.vbus, self.vbus)] {
+            ch.gain_error = e.gain_error;
+            ch.offset_code = e.offset_code;
+        }
+        out.seed = self.noise_seed;
+        out
     }
 
     /// The position sensor's gain error \[-\] and offset \[code\] for a stroke of `stroke_m`
@@ -223,17 +260,21 @@ impl ClosedLoop {
 
 /// Tunes the actuator `report` (and `mechanics`, when measured) measured on file `a`
 /// ([`measured`]) at the board's rate, as `bench commission --tune` does, and runs its
-/// evaluation sequence on the true `plant`, the converter with its typical noise but no
-/// gain or offset error (the end stops are not yet applied to the calibration, so a
-/// sensor's own error would stay in the position).
+/// evaluation sequence on the true `plant` with the position sensor's gain and offset the
+/// end stops measured taken out ([`PositionCorrection::from_stops`], as
+/// `bench commission --apply` sets them). The converter is the board's, with its typical
+/// noise and the errors of `draw` (the sensor that was commissioned; `None`: none), so
+/// the steady error is judged on the true position with what the correction leaves.
 ///
 /// # Errors
-/// Measured values no actuator can have; settings that do not derive.
+/// Measured values no actuator can have; settings that do not derive; a correction beyond
+/// the calibration's room.
 pub fn closed_loop(
     a: &Actuator,
     report: &Report,
     mechanics: Option<&Mechanics>,
     plant: &Params,
+    draw: Option<&Draw>,
 ) -> Result<ClosedLoop, Error> {
     let (m, _) = measured(a, report, mechanics)?;
     let rate = f64::from(a.board.rate_hz);
@@ -253,12 +294,30 @@ pub fn closed_loop(
     };
     let mut sc = crate::simulation::actuator::scenario("commissioned", &t)?;
     sc.plant = TruePlant::Given(plant.clone());
+    let code_m = f64::from(a.calibration().position.scale);
+    let correction = stops_correction(a, report);
+    sc.controller.sense = t.calibration_with(&correction).map_err(Error::Actuator)?;
+    if let (Sensors::Adc(adc), Some(d)) = (&mut sc.sensors, draw) {
+        *adc = d.converter(adc, plant.stroke_m, code_m, &correction);
+    }
     let run = crate::simulation::sim::run(&sc)?;
     let targets = Targets::for_scenario(&sc);
     Ok(ClosedLoop::Ran {
         worst: Worst::of([&run.metrics], &targets),
         targets,
     })
+}
+
+/// The position sensor's correction the end stops of `report` give, read through the
+/// calibration of file `a`.
+#[must_use]
+pub fn stops_correction(a: &Actuator, report: &Report) -> PositionCorrection {
+    PositionCorrection::from_stops(
+        report.ends.open_m,
+        report.ends.closed_m,
+        a.mechanics.stroke_m,
+        a.calibration().position.scale,
+    )
 }
 
 /// Commissions actuator `a` (its file), the plant the file's or `draw`n from it.
@@ -275,20 +334,19 @@ pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
 /// # Errors
 /// An actuator whose settings do not derive; a plant that does not validate.
 pub fn run_on(a: &Actuator, plant: &Params, draw: Option<&Draw>) -> Result<Outcome, Error> {
-    let mut sc = scenario(a, true)?;
-    if let (Sensors::Adc(adc), Some(d)) = (&mut sc.sensors, draw) {
-        adc.seed = d.noise_seed;
-    }
+    let sc = scenario(a, true)?;
+    let code_m = f64::from(sc.controller.sense.position.scale);
     let plant = plant.clone();
     let mut stepper = Stepper::for_scenario(&sc, plant.clone(), sc.integration.substeps)?;
-    let mut converter = match &sc.sensors {
-        Sensors::Adc(adc) => adc.start(&sc.controller.sense),
-        Sensors::Ideal => Adc::default().start(&sc.controller.sense),
+    let adc = match &sc.sensors {
+        Sensors::Adc(adc) => *adc,
+        Sensors::Ideal => Adc::default(),
     };
-    let position = sc.controller.sense.position;
-    let code_m = f64::from(position.scale);
+    let adc = draw.map_or(adc, |d| {
+        d.converter(&adc, plant.stroke_m, code_m, &PositionCorrection::NONE)
+    });
+    let mut converter = adc.start(&sc.controller.sense);
     let (gain, offset_code) = draw.map_or((0.0, 0.0), |d| d.position_error(plant.stroke_m, code_m));
-    converter.set_position_error(gain, offset_code);
     let (pwm, dir, en, lines) = hal::bridge_io(sc.bridge.max_duty);
     let Ok(mut bridge) = HBridge::new(pwm, dir, en);
     let cfg = sc.controller.build().map_err(Error::Controller)?;

@@ -40,7 +40,8 @@
 //!
 //! A position sensor carries an offset and a gain error of a few per cent of the stroke,
 //! which no controller acting on its reading removes. The readings at the two stops fix
-//! both. Still with the loop open, and with the voltages now set from the first two
+//! both ([`crate::control::sense::PositionCorrection::from_stops`], set on the board as
+//! `sensor.position_gain` and `sensor.position_offset_codes`). Still with the loop open, and with the voltages now set from the first two
 //! steps' resistance, so that the current stays below the rating whatever the file said:
 //!
 //! 1. **open stop**: the coil off; once the armature has come back and rests (the wait is

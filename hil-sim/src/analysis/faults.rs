@@ -544,10 +544,7 @@ fn spread(c: &Case, outcomes: &[Outcome]) -> Spread {
                 s.detected_s.push(t);
                 s.within_deadline += usize::from(t <= DEADLINE_S);
             }
-            (Some(f), _) => match s.misnamed.iter_mut().find(|(k, _)| k == f) {
-                Some((_, n)) => *n += 1,
-                None => s.misnamed.push((f.clone(), 1)),
-            },
+            (Some(f), _) => crate::analysis::report::tally(&mut s.misnamed, f.clone()),
             (None, _) => s.unnamed += 1,
         }
     }

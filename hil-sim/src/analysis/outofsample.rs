@@ -165,10 +165,7 @@ pub fn judge(d: &Drawn, plants: usize, plant_seed: u64) -> Result<Verdict, Error
     let mut misses: Vec<(String, usize)> = Vec::new();
     for (_, what) in &missing {
         for w in what {
-            match misses.iter_mut().find(|(n, _)| n == w) {
-                Some((_, k)) => *k += 1,
-                None => misses.push(((*w).to_owned(), 1)),
-            }
+            crate::analysis::report::tally(&mut misses, (*w).to_owned());
         }
     }
     v.montecarlo = Some(MonteCarlo {

@@ -396,7 +396,8 @@ pub struct Evaluation {
     /// Every corner plant at every rate was run (the score is the candidate's own, not a
     /// lower bound at which it stopped).
     pub complete: bool,
-    /// The metric furthest from its target, and the rate where.
+    /// The metric furthest from its target, and the rate where (on the validation's drawn
+    /// plants when [`Self::validated`] is `Some(false)`).
     pub limiting: Option<(String, f64)>,
     /// The corner plant of [`corners`] where the limiting metric is worst (0 is the
     /// nominal plant; `None`: not run on a plant).
@@ -715,7 +716,7 @@ impl Search<'_> {
                 checked.push((w, t));
                 if let Some(what) = misses.first() {
                     e.validated = Some(false);
-                    e.limiting = Some((format!("{what} on drawn plants"), rate));
+                    e.limiting = Some(((*what).to_owned(), rate));
                     break;
                 }
             }
@@ -923,10 +924,6 @@ fn refusal(evaluations: &[Evaluation]) -> Option<Refusal> {
         .limiting
         .clone()
         .unwrap_or_else(|| ("none".into(), f64::NAN));
-    // The validation's limiting metric is `<what> on drawn plants`.
-    let what = what
-        .strip_suffix(" on drawn plants")
-        .map_or(what.clone(), str::to_owned);
     Some(Refusal {
         stage,
         candidate: best.candidate,

@@ -216,10 +216,7 @@ pub fn summary(verdicts: &[Verdict]) -> String {
     let mut refused: Vec<(String, usize)> = Vec::new();
     for v in verdicts {
         if let Err(r) = &v.tune {
-            match refused.iter_mut().find(|(w, _)| *w == r.what) {
-                Some((_, k)) => *k += 1,
-                None => refused.push((r.what.clone(), 1)),
-            }
+            crate::analysis::report::tally(&mut refused, r.what.clone());
         }
     }
     refused.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));

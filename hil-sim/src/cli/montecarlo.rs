@@ -487,13 +487,8 @@ fn list(v: &[(&'static str, usize)]) -> String {
 }
 
 fn bump(v: &mut Vec<(&'static str, usize)>, key: &'static str) {
-    match v.iter_mut().find(|(k, _)| *k == key) {
-        Some((_, n)) => *n += 1,
-        None => {
-            v.push((key, 1));
-            v.sort_unstable();
-        }
-    }
+    crate::analysis::report::tally(v, key);
+    v.sort_unstable();
 }
 
 /// Every draw sorted.

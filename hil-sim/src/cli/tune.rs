@@ -158,7 +158,14 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
             .into(),
             e.limiting.as_ref().map_or_else(
                 || "-".into(),
-                |(what, rate)| format!("{what} at {} kHz", sig(rate / 1e3, 3)),
+                |(what, rate)| {
+                    let plants = if e.validated == Some(false) {
+                        " on drawn plants"
+                    } else {
+                        ""
+                    };
+                    format!("{what}{plants} at {} kHz", sig(rate / 1e3, 3))
+                },
             ),
         ]);
     }

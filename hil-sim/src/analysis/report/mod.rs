@@ -75,9 +75,27 @@ pub fn sig(v: f64, digits: usize) -> String {
     }
 }
 
+/// Counts one more `key` in `counts`: its entry's count up by one, or a new entry with
+/// one at the end (the order of first appearance).
+pub fn tally<K: PartialEq>(counts: &mut Vec<(K, usize)>, key: K) {
+    match counts.iter_mut().find(|(k, _)| *k == key) {
+        Some((_, n)) => *n += 1,
+        None => counts.push((key, 1)),
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::sig;
+    use super::{sig, tally};
+
+    #[test]
+    fn a_tally_counts_each_key_in_the_order_it_first_came() {
+        let mut counts = Vec::new();
+        for k in ["b", "a", "b", "c", "b"] {
+            tally(&mut counts, k);
+        }
+        assert_eq!(counts, vec![("b", 3), ("a", 1), ("c", 1)]);
+    }
 
     #[test]
     fn significant_digits() {

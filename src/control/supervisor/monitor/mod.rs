@@ -72,6 +72,52 @@
 //! resistance tolerance explains (`|u - R i| <= tol R |i|`, holding or a slow move)
 //! agrees with an admissible coil; it becomes observable only once the law, acting on the
 //! frozen reading, has driven the real current away from it.
+//!
+//! ## What each fault moves, and what cannot be told apart
+//!
+//! Each fault moves one of three kinds of evidence first: a reading outside its
+//! converter's plausible window ([`crate::control::sense::Calibration::convert`]), the
+//! electrical residual above (the current reading against every admissible coil under the
+//! voltage applied), or the position reading against the observer's motion ([`Stuck`]).
+//!
+//! | fault | what moves first | named by |
+//! |---|---|---|
+//! | position sensor open or shorted | the position code on a rail | the window |
+//! | position sensor stuck | the reading stays in its noise band while the observer's velocity carries the armature on | [`Stuck`] |
+//! | current sensor stuck | the reading stays put while every admissible coil is driven away from it (behind the drive) | the bank |
+//! | current sensor offset | one step beyond any coil, then admissible steps again | the one-step check |
+//! | coil open | the reading falls to zero while every admissible coil carries current | the bank |
+//! | coil short | the reading runs ahead of every admissible coil on the same voltage | the bank |
+//! | coil outside its bounds | the reading outside the envelope, by less than `gross` | the bank |
+//! | supply sag or over-voltage | the bus reading | the limits |
+//!
+//! Three pairs are not isolable from the electrical residual alone, and the bank names
+//! them by what came first, which holds only while that first evidence is seen:
+//!
+//! * **a frozen current reading and a short the loop already holds**: both keep the
+//!   reading still on a voltage below what holds any admissible coil (the short's `u = R'
+//!   i` with `R'` below the bounds; the frozen reading's law winding its voltage down).
+//!   With a constant voltage the two are the same data. A short ran ahead of every coil
+//!   before the loop caught it; a frozen reading never moved. When the run-ahead was
+//!   within the noise (a slow coil, a small holding current), the short is named
+//!   [`Fault::CurrentStuck`].
+//! * **a short and a coil below its inductance bound, within a coil time constant**: over
+//!   the first periods the current rises by `Ts / L (u - R i)` per period, and a lower `R`
+//!   and a lower `L` raise it alike; they part only as the current nears its new steady
+//!   state `u / R`. On a coil whose time constant is a few periods (the product's), the
+//!   bank confirms within that time, and its fit, over a window that began before the
+//!   short, reads a resistance within `gross` of the bounds: [`Fault::ModelBounds`].
+//! * **a current offset and a resistance change, once the step is past**: a reading
+//!   `i + o` on a coil held at `u = R i` looks like a coil of resistance `u / (i + o)`.
+//!   The one-step check names the offset on the step itself; one that steps in over
+//!   several periods (a drifting amplifier) is read as a resistance.
+//!
+//! What separates them, and is not used yet: the armature. A frozen current reading lets
+//! the real current, hence the pull, drift while the reading says it is right; the
+//! position then leaves the reference with no force the observer can account for. A
+//! short the loop holds keeps the pull right, and the armature where it was.
+//! `hil-sim faults NAME --random N` measures how often each case is named right at random
+//! instants; the results' random-instant table judges each row.
 
 mod residual;
 mod stuck;

@@ -2,6 +2,7 @@
 //! captures, their attempts, and the mechanics fitted from them.
 
 use ema::control::actuator::Actuator;
+use ema::control::sense::PositionCorrection;
 use ema::device::commission::Report;
 
 use super::{
@@ -301,11 +302,12 @@ pub(super) fn hold_once(
 ) -> Result<(Result<Mechanics, &'static str>, f64), Error> {
     let mut sc = crate::simulation::actuator::scenario("holds", m)?;
     sc.plant = TruePlant::Given(plant.clone());
+    // The routine's converter, its errors on every channel; the loop holds through the
+    // file's calibration, and the fits correct the positions with the end stops
+    // ([`corrected`](super::corrected)).
     let code_m = f64::from(sc.controller.sense.position.scale);
     if let (Sensors::Adc(adc), Some(d)) = (&mut sc.sensors, draw) {
-        (adc.position.gain_error, adc.position.offset_code) =
-            d.position_error(plant.stroke_m, code_m);
-        adc.seed = d.noise_seed;
+        *adc = d.converter(adc, plant.stroke_m, code_m, &PositionCorrection::NONE);
     }
     let stroke_m = f64::from(m.mechanics.stroke_m);
     let rate = sc.rate_hz();

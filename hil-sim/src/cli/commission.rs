@@ -57,6 +57,56 @@ const QUANTITIES: [Quantity; 6] = [
 /// A row of [`QUANTITIES`]: its label, its target and its value in the label's unit.
 type Quantity = (&'static str, f64, fn(&commissioning::Errors) -> f64);
 
+/// What the holds read wrong, relative unless named otherwise (NaN: not read).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct MechanicsErrors {
+    /// The spring's rate.
+    spring: f64,
+    /// The preload, as a share of the spring's force over the stroke.
+    preload: f64,
+    /// The mass (NaN: no move fitted).
+    mass: f64,
+    /// The friction (NaN: no move fitted).
+    friction: f64,
+    /// The friction, as a share of the critical damping `2 sqrt(K m)`.
+    friction_damping: f64,
+    /// The largest inductance error over the holds' probes.
+    held: f64,
+    /// The inductance curve's over the stroke, of the circuit fitted with the holds.
+    fitted: f64,
+}
+
+/// A row of [`MECHANICS`]: its label, its target in the label's unit (none: reported
+/// only) and its value, a share.
+type MechanicsRow = (&'static str, Option<f64>, fn(&MechanicsErrors) -> f64);
+
+/// The holds' rows.
+const MECHANICS: [MechanicsRow; 7] = [
+    (
+        "spring rate error [%]",
+        Some(100.0 * commissioning::SPRING_CLASS),
+        |e| e.spring,
+    ),
+    ("preload error [% of K x stroke]", None, |e| e.preload),
+    (
+        "mass error [%]",
+        Some(100.0 * commissioning::MASS_CLASS),
+        |e| e.mass,
+    ),
+    ("friction error [%]", None, |e| e.friction),
+    (
+        "friction error [% of the critical damping]",
+        Some(100.0 * commissioning::FRICTION_CLASS_DAMPING),
+        |e| e.friction_damping,
+    ),
+    ("inductance error at the holds [%]", Some(5.0), |e| e.held),
+    (
+        "inductance error over the stroke, fitted [%]",
+        Some(5.0),
+        |e| e.fitted,
+    ),
+];
+
 /// Actuator time a commissioning may take, the board's routine and the holds \[s\].
 pub const COMMISSIONING_S: f64 = 10.0;
 
@@ -98,16 +148,16 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
                 let fitted = commissioning::measured(&a, &r, Some(m))
                     .and_then(|(f, _)| commissioning::curve_error(&f, &plant))
                     .unwrap_or(f64::NAN);
-                [
-                    m.spring.n_per_m / plant.spring_n_per_m - 1.0,
-                    (m.spring.preload_n - plant.preload_n)
+                MechanicsErrors {
+                    spring: m.spring.n_per_m / plant.spring_n_per_m - 1.0,
+                    preload: (m.spring.preload_n - plant.preload_n)
                         / (plant.spring_n_per_m * plant.stroke_m),
                     mass,
                     friction,
-                    friction * plant.friction_n_s_per_m / critical,
+                    friction_damping: friction * plant.friction_n_s_per_m / critical,
                     held,
                     fitted,
-                ]
+                }
             });
             let closed = if args.tune {
                 Some(commissioning::closed_loop(
@@ -158,7 +208,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     // The faults that ended an attempt at the holds, and those that ended the last.
     let mut attempts_faulted: BTreeMap<&str, usize> = BTreeMap::new();
     let mut holds_faulted: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut mechanics: Vec<[f64; 7]> = Vec::new();
+    let mut mechanics: Vec<MechanicsErrors> = Vec::new();
     // Holds measured on an attempt after the first.
     let mut retried = 0;
     for (s, faults, _) in runs.iter().filter_map(|(_, s, _)| s.as_ref()) {
@@ -173,28 +223,11 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
             (None, last) => *holds_faulted.entry(last.unwrap_or(&"none")).or_default() += 1,
         }
     }
-    for (i, (what, target)) in [
-        (
-            "spring rate error [%]",
-            Some(100.0 * commissioning::SPRING_CLASS),
-        ),
-        ("preload error [% of K x stroke]", None),
-        ("mass error [%]", Some(100.0 * commissioning::MASS_CLASS)),
-        ("friction error [%]", None),
-        (
-            "friction error [% of the critical damping]",
-            Some(100.0 * commissioning::FRICTION_CLASS_DAMPING),
-        ),
-        ("inductance error at the holds [%]", Some(5.0)),
-        ("inductance error over the stroke, fitted [%]", Some(5.0)),
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let v = mechanics.iter().map(|e| 100.0 * e[i].abs()).collect();
+    for (what, target, value) in MECHANICS {
+        let v = mechanics.iter().map(|e| 100.0 * value(e).abs()).collect();
         row(&mut t, what, v, target);
     }
-    let unfitted = mechanics.iter().filter(|e| e[2].is_nan()).count();
+    let unfitted = mechanics.iter().filter(|e| e.mass.is_nan()).count();
     let took = outcomes.iter().map(|o| o.took_s).collect();
     let with_holds = runs
         .iter()

@@ -150,15 +150,15 @@ pub const PROBE_LOW_PER_HIGH: f32 = 0.25;
 /// force over the stroke, for the weakest spring and the strongest magnet within
 /// [`SPREAD`] of the file: a soft spring would let the rated share pull the armature in.
 pub const PROBE_PULL_SHARE: f32 = 0.1;
-/// Readings per time constant at the open stop the probe's cycles gather together (a
-/// coil faster than the period gives few per step). Half as many read one of 1000 drawn
-/// micro-valves' open stops 5 % off (its 16 cycles take 50 ms, its 10 then 30 ms).
+/// Readings per time constant at the open stop the probe's cycles gather together: a
+/// coil faster than the period gives few per step, and the inductance comes from the
+/// decay's shape, so the cycles add readings until the fit has this many per time
+/// constant.
 pub const PROBE_READINGS: f32 = 64.0;
-/// Most cycles of the probe (the product's: 53 ms of 1.7 ms levels). Each cycle pulls the
-/// armature a little further off the stop, and a surface growing with the gap bends the
-/// line the open stop's value is extrapolated on: twice as many read 1000 drawn products'
-/// open stops with a 99th percentile of 2.2 % instead of 3.2 %, but a product whose pole
-/// grows by 0.3 of the gap with its curve 0.54 % off instead of 0.15 %.
+/// Most cycles of the probe (the product's: 53 ms of 1.7 ms levels). More cycles average
+/// more noise away, but each pulls the armature a little further off the stop, and a
+/// surface growing with the gap bends the line the open stop's value is extrapolated on:
+/// the cap trades the noise against that bend.
 pub const MAX_PROBE_CYCLES: u32 = 16;
 /// A step-response fit ends where the file's coil would have decayed to this share of
 /// the step (e^-6: six of its time constants).

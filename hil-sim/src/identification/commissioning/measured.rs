@@ -34,9 +34,9 @@ pub const FRICTION_CLASS_DAMPING: f64 = 0.05;
 /// The least iron reluctance an actuator measured by a commissioning keeps, as a share of
 /// the closed gap's total (see [`measured`], [`Circuit::fit`](super::Circuit::fit)): above
 /// none, as the model needs, and far below any real iron's (the paper's actuator's is
-/// 4.5e-5), so that the floor bends no line the readings give. (At a hundredth, the floor
-/// bent the fitted line of drawn products 0.7 % off at their closed stop, where their iron
-/// is far below it.)
+/// 4.5e-5), so that the floor bends no line the readings give: a floor near a real
+/// iron's share would move the fitted line at the closed stop, where the iron's share of
+/// the reluctance is largest.
 pub const IRON_SHARE: f32 = 1e-6;
 
 /// The actuator a commissioning measured: `file` (the board's) with the measured resistance

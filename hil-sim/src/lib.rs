@@ -89,6 +89,8 @@
 //! | steady window | the last 50 ms of a segment, where the steady error and the ripple are measured |
 //! | targets | the product's limits a run must stay within ([`simulation::targets`]) |
 //! | draw | one random sample with its own seed: a plant from a controller's uncertainty set ([`mod@analysis::montecarlo`], [`simulation::draw`]), or an actuator from the generator ([`analysis::drawn`]) |
+//! | specimen | an actuator as a user's is, drawn off its file for a commissioning: its plant, its position sensor's and converter's errors, its noise ([`identification::commissioning::Specimen`]) |
+//! | injection | a fault a scenario injects at an instant ([`simulation::scenario::Injection`]); what the bench's test rig does to the virtual board is a stimulus (the `bench` crate) |
 //! | corner plant | a plant at the extremes of the uncertainty set, where `tune` runs its candidates ([`analysis::tune::corners`]) |
 //! | seed | the start of a reproducible stream of draws; which seed chooses and which judges: [`analysis::seeds`] |
 //! | class | a stated tolerance band: of a converter's gain and offset ([`simulation::hal::CalibrationClass`]), or of a quantity commissioning measures ([`identification::commissioning`]) |

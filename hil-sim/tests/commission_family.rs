@@ -65,7 +65,7 @@ fn small_probe_steps_give_the_inductance_within_five_percent_on_drawn_plants() {
         let (_, a) = hil_sim::simulation::actuator::load(name).unwrap();
         let mut worst = [0.0_f64; 3];
         for _ in 0..16 {
-            let draw = hil_sim::identification::commissioning::Draw::new(&mut rng);
+            let draw = hil_sim::identification::commissioning::Specimen::new(&mut rng);
             let o = hil_sim::identification::commissioning::run(&a, Some(&draw)).unwrap();
             let Some(Errors {
                 inductance_open: open,
@@ -118,7 +118,7 @@ fn a_valve_that_snaps_onto_its_stop_in_a_step_s_wait_is_driven_within_its_rating
     let rated = f64::from(a.coil.rated_current_a);
     for seed in SNAP_SEEDS {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-        let draw = hil_sim::identification::commissioning::Draw::new(&mut rng);
+        let draw = hil_sim::identification::commissioning::Specimen::new(&mut rng);
         let o = hil_sim::identification::commissioning::run(&a, Some(&draw)).unwrap();
         eprintln!(
             "seed {seed}: peak {:.4} A (rated {rated} A), {:?}",
@@ -141,7 +141,7 @@ fn a_drawn_product_commissioned_and_tuned_meets_every_target_in_closed_loop() {
     use rand::SeedableRng;
     let (_, a) = hil_sim::simulation::actuator::load("product").unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(PRODUCT_SEED);
-    let draw = hil_sim::identification::commissioning::Draw::new(&mut rng);
+    let draw = hil_sim::identification::commissioning::Specimen::new(&mut rng);
     let o = hil_sim::identification::commissioning::run(&a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
     let plant = hil_sim::identification::commissioning::true_plant(&a, Some(&draw)).unwrap();
@@ -179,7 +179,7 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
         }
     }
     let (_, a) = hil_sim::simulation::actuator::load("product").unwrap();
-    let corner = hil_sim::identification::commissioning::Draw {
+    let corner = hil_sim::identification::commissioning::Specimen {
         factors: hil_sim::identification::commissioning::Factors::NONE,
         preload_share: 0.0,
         gain_error: f64::from(t),
@@ -204,7 +204,7 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
 /// true plant, the commissioning's report, what the holds measured (none: every attempt
 /// ended by a fault) and the faults that ended attempts.
 struct Drawn {
-    draw: hil_sim::identification::commissioning::Draw,
+    draw: hil_sim::identification::commissioning::Specimen,
     plant: hil_sim::simulation::plant::Params,
     report: ema::device::commission::Report,
     mechanics: Option<hil_sim::identification::commissioning::Mechanics>,
@@ -216,7 +216,7 @@ fn holds_on_a_drawn_plant(
     a: &ema::control::actuator::Actuator,
     rng: &mut rand_pcg::Pcg64,
 ) -> Drawn {
-    let draw = hil_sim::identification::commissioning::Draw::new(rng);
+    let draw = hil_sim::identification::commissioning::Specimen::new(rng);
     let o = hil_sim::identification::commissioning::run(a, Some(&draw)).unwrap();
     let report = o.report.unwrap();
     let plant = hil_sim::identification::commissioning::true_plant(a, Some(&draw)).unwrap();
@@ -426,7 +426,7 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
 #[test]
 fn a_weak_magnet_on_a_resistive_coil_has_its_holds_read_within_two_percent() {
     let (_, a) = hil_sim::simulation::actuator::load("valve").unwrap();
-    let draw = hil_sim::identification::commissioning::Draw {
+    let draw = hil_sim::identification::commissioning::Specimen {
         factors: hil_sim::identification::commissioning::Factors {
             surfaces: 0.71,
             resistance: 1.24,

@@ -73,9 +73,11 @@ impl Default for Options {
     }
 }
 
-/// A fault to inject into the plant.
+/// What the test rig does to the virtual board: a fault in the plant or its sensors, the
+/// supply, the analog set point, a power cut (the scenario's timed fault is
+/// [`hil_sim::simulation::scenario::Injection`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Injection {
+pub enum Stimulus {
     /// The supply's source voltage \[V\].
     Supply(f64),
     /// The position sensor's output at 0 V (open) or back to normal.
@@ -325,12 +327,13 @@ impl VirtualBoard {
         self.start(None)
     }
 
-    /// Injects a fault into the plant (or arms a power cut for the next save).
-    pub fn inject(&mut self, injection: Injection) {
-        match injection {
-            Injection::Supply(v) => self.plant.stepper.set_supply_v(v),
-            Injection::PositionOpen(open) => self.plant.position_open = open,
-            Injection::Analog { value, current } => {
+    /// Applies a stimulus: a fault into the plant, the supply, the analog input, or a power
+    /// cut armed for the next save.
+    pub fn inject(&mut self, stimulus: Stimulus) {
+        match stimulus {
+            Stimulus::Supply(v) => self.plant.stepper.set_supply_v(v),
+            Stimulus::PositionOpen(open) => self.plant.position_open = open,
+            Stimulus::Analog { value, current } => {
                 let per_code = if current {
                     f64::from(ema::device::analog::CURRENT_A_PER_CODE)
                 } else {
@@ -338,17 +341,17 @@ impl VirtualBoard {
                 };
                 self.plant.analog_code = (value / per_code).round().clamp(0.0, 4095.0) as u16;
             }
-            Injection::CutSave(step) => self.save_cut = Some(step),
-            Injection::Resistance(r) => self.plant.stepper.set_resistance_ohm(r),
-            Injection::CoilOpen(open) => self.plant.stepper.set_coil_open(open),
-            Injection::Jammed(jammed) => self.plant.stepper.set_jammed(jammed),
-            Injection::Surfaces(scale) => {
+            Stimulus::CutSave(step) => self.save_cut = Some(step),
+            Stimulus::Resistance(r) => self.plant.stepper.set_resistance_ohm(r),
+            Stimulus::CoilOpen(open) => self.plant.stepper.set_coil_open(open),
+            Stimulus::Jammed(jammed) => self.plant.stepper.set_jammed(jammed),
+            Stimulus::Surfaces(scale) => {
                 let mut p = self.file_plant();
                 p.scale_surfaces(scale);
                 self.plant.stepper.plant_mut().gaps = p.gaps;
             }
-            Injection::DriverFault(active) => self.plant.driver_fault = active,
-            Injection::Mechanics {
+            Stimulus::DriverFault(active) => self.plant.driver_fault = active,
+            Stimulus::Mechanics {
                 mass_kg,
                 spring_n_per_m,
                 preload_n,
@@ -360,14 +363,14 @@ impl VirtualBoard {
                 p.preload_n = preload_n;
                 p.friction_n_s_per_m = friction_n_s_per_m;
             }
-            Injection::PositionSensor {
+            Stimulus::PositionSensor {
                 gain_error,
                 offset_code,
             } => self
                 .plant
                 .converter
                 .set_position_error(gain_error, offset_code),
-            Injection::HangMainLoop(hung) => self.main_hung = hung,
+            Stimulus::HangMainLoop(hung) => self.main_hung = hung,
         }
     }
 
@@ -399,7 +402,7 @@ impl VirtualBoard {
         self.ticks
     }
 
-    /// The plant as the file describes it, before any injection.
+    /// The plant as the file describes it, before any stimulus.
     #[must_use]
     pub fn file_plant(&self) -> hil_sim::simulation::plant::Params {
         self.scenario.plant.resolve(&self.scenario.controller.plant)
@@ -588,7 +591,7 @@ impl VirtualBoard {
 
     /// Serves a host on `port` until `stop` is set: ticks in batches of a millisecond,
     /// `speed` times real time (`None`: as fast as it can), moving bytes between the port
-    /// and the board, and calling `between` (injections), between batches.
+    /// and the board, and calling `between` (stimuli), between batches.
     ///
     /// # Errors
     /// The port failing, or a restart that fails.

@@ -30,7 +30,7 @@
 //! ```text
 //! cargo build --release -p bench
 //! B=target/release/bench
-//! $B virtual --link /tmp/ema-board &        # prints the pseudo-terminal; stdin: injections
+//! $B virtual --link /tmp/ema-board &        # prints the pseudo-terminal; stdin: stimuli
 //! export EMA_PORT=/tmp/ema-board
 //! $B status                                 # disarmed after every start, where the parameters came from
 //! $B console <<'END'                        # one link, kept alive between the lines
@@ -54,7 +54,7 @@
 //! single-command `arm` and `move` therefore leave the board armed only for that long;
 //! `console` runs a whole session over one link and disarms at the end of its input.
 //!
-//! On the virtual board's standard input, one injection per line: `supply V` (the
+//! On the virtual board's standard input, one stimulus ([`board::Stimulus`]) per line: `supply V` (the
 //! supply's voltage), `position-open`, `position-ok`, `analog-v V`, `analog-ma MA`,
 //! `cut-save STEP` (the power goes at that step of the next save), `resistance OHM`,
 //! `surfaces SCALE` and `spring N_PER_M PRELOAD_N` (an actuator off its file, to

@@ -9,7 +9,7 @@ mod rig;
 use std::thread;
 use std::time::Duration;
 
-use bench::board::{Injection, Options};
+use bench::board::{Options, Stimulus};
 use bench::cli::{self, CaptureArgs};
 use ema::control::supervisor::Fault;
 use ema::device::protocol::{Command, Message, Mode, Refusal, Reply, Source, Value};
@@ -101,7 +101,7 @@ fn the_host_tool_drives_the_virtual_board_through_a_session() {
     wait_for(&mut rig, "at 3 mm", |s| (s.x_m - 3e-3).abs() < 20e-6);
 
     // A supply sag: bus_under_voltage, named; the bridge coasts.
-    rig.inject.send(Injection::Supply(10.0)).unwrap();
+    rig.inject.send(Stimulus::Supply(10.0)).unwrap();
     wait_for(&mut rig, "a fault", |s| s.mode == Mode::Fault);
     let s = rig.status();
     assert_eq!(s.fault, Some(Fault::BusUnderVoltage.code()));
@@ -135,7 +135,7 @@ fn the_host_tool_drives_the_virtual_board_through_a_session() {
         )
     );
     // The supply back: clear, disarmed, arm again.
-    rig.inject.send(Injection::Supply(24.0)).unwrap();
+    rig.inject.send(Stimulus::Supply(24.0)).unwrap();
     wait_for(&mut rig, "the bus back", |s| s.not_ready.is_none());
     rig.link.done(Command::Clear).unwrap();
     assert_eq!(rig.status().mode, Mode::Disarmed);
@@ -205,7 +205,7 @@ fn the_host_tool_drives_the_virtual_board_through_a_session() {
                 value: Value::Number(new),
             })
             .unwrap();
-        rig.inject.send(Injection::CutSave(step)).unwrap();
+        rig.inject.send(Stimulus::CutSave(step)).unwrap();
         rig.link.forget_started();
         rig.link.done(Command::Save).unwrap();
         let started = rig.link.wait_started(Duration::from_secs(5)).unwrap();
@@ -246,7 +246,7 @@ fn a_driver_fault_on_the_break_input_holds_the_bridge_off_until_it_is_gone_and_c
         .unwrap();
     wait_for(&mut rig, "at 3 mm", |s| (s.x_m - 3e-3).abs() < 20e-6);
 
-    rig.inject.send(Injection::DriverFault(true)).unwrap();
+    rig.inject.send(Stimulus::DriverFault(true)).unwrap();
     wait_for(&mut rig, "a fault", |s| s.mode == Mode::Fault);
     assert_eq!(rig.status().fault, Some(Fault::HardwareTrip.code()));
     wait_for(&mut rig, "back at the open stop", |s| s.x_m < 0.1e-3);
@@ -261,7 +261,7 @@ fn a_driver_fault_on_the_break_input_holds_the_bridge_off_until_it_is_gone_and_c
         )
     );
 
-    rig.inject.send(Injection::DriverFault(false)).unwrap();
+    rig.inject.send(Stimulus::DriverFault(false)).unwrap();
     rig.link.done(Command::Clear).unwrap();
     assert_eq!(rig.status().mode, Mode::Disarmed);
     rig.link.done(Command::Arm).unwrap();
@@ -353,7 +353,7 @@ fn a_hung_main_loop_ends_in_the_safe_state_and_is_named_after_the_restart() {
         .unwrap();
     wait_for(&mut rig, "at 3 mm", |s| (s.x_m - 3e-3).abs() < 20e-6);
     rig.link.forget_started();
-    rig.inject.send(Injection::HangMainLoop(true)).unwrap();
+    rig.inject.send(Stimulus::HangMainLoop(true)).unwrap();
     let started = rig.link.wait_started(Duration::from_secs(5)).unwrap();
     assert_eq!(started.params, Source::Defaults);
     let s = rig.status();

@@ -17,7 +17,7 @@
 #[path = "common/rig.rs"]
 mod rig;
 
-use bench::board::{Injection, Options};
+use bench::board::{Options, Stimulus};
 use bench::cli::{self, CommissionArgs};
 use ema::control::actuator::Actuator;
 use ema::device::protocol::{Command, Commissioned, Message, Mode, Refusal, Reply};
@@ -44,7 +44,7 @@ impl Commissioning for Rig {
     /// Sets the coil's resistance and waits until the board has taken it (a status round
     /// trip after the injection).
     fn coil(&mut self, r_ohm: f64) {
-        self.inject.send(Injection::Resistance(r_ohm)).unwrap();
+        self.inject.send(Stimulus::Resistance(r_ohm)).unwrap();
         self.status();
         self.status();
     }
@@ -133,7 +133,7 @@ fn a_coil_far_below_its_file_stops_above_the_rating_and_a_disarm_stops_it() {
 }
 
 /// The product's armature and position sensor drawn off the file (see the module docs).
-fn drawn(rng: &mut impl Rng, code_m: f64) -> (Injection, Injection, f64, f64, f64, f64) {
+fn drawn(rng: &mut impl Rng, code_m: f64) -> (Stimulus, Stimulus, f64, f64, f64, f64) {
     let a = Actuator::PRODUCT;
     let m = &a.mechanics;
     let spread = |rng: &mut dyn rand::RngCore, v: f32, s: f64| {
@@ -143,7 +143,7 @@ fn drawn(rng: &mut impl Rng, code_m: f64) -> (Injection, Injection, f64, f64, f6
     let stroke = f64::from(m.stroke_m);
     // An unknown preload: up to a fifth of the spring's force over the stroke.
     let preload = rng.random_range(0.0..0.2) * spring * stroke;
-    let mechanics = Injection::Mechanics {
+    let mechanics = Stimulus::Mechanics {
         mass_kg: spread(rng, m.mass_kg, 0.3),
         spring_n_per_m: spring,
         preload_n: preload,
@@ -151,7 +151,7 @@ fn drawn(rng: &mut impl Rng, code_m: f64) -> (Injection, Injection, f64, f64, f6
     };
     let gain_error = rng.random_range(-0.03..0.03);
     let offset_code = rng.random_range(-0.03..0.03) * stroke / code_m;
-    let sensor = Injection::PositionSensor {
+    let sensor = Stimulus::PositionSensor {
         gain_error,
         offset_code,
     };
@@ -179,7 +179,7 @@ fn drawn_actuators_have_their_stops_found_within_two_codes_below_the_rating() {
         (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
     for k in 0..ACTUATORS {
         let (mechanics, sensor, r, gain, offset, surfaces) = drawn(&mut rng, code_m);
-        rig.inject.send(Injection::Surfaces(surfaces)).unwrap();
+        rig.inject.send(Stimulus::Surfaces(surfaces)).unwrap();
         rig.inject.send(mechanics).unwrap();
         rig.inject.send(sensor).unwrap();
         rig.coil(r);
@@ -253,13 +253,13 @@ fn an_open_or_shorted_coil_a_backwards_sensor_a_jammed_armature_and_a_broken_spr
     let code_m = f64::from(a.time_scales().unwrap().position_code_m);
     let stroke = f64::from(m.stroke_m);
     let file_r = f64::from(a.coil.resistance_ohm);
-    let nominal = Injection::Mechanics {
+    let nominal = Stimulus::Mechanics {
         mass_kg: f64::from(m.mass_kg),
         spring_n_per_m: f64::from(m.spring_n_per_m),
         preload_n: f64::from(m.preload_n),
         friction_n_s_per_m: f64::from(m.friction_n_s_per_m),
     };
-    let straight = Injection::PositionSensor {
+    let straight = Stimulus::PositionSensor {
         gain_error: 0.0,
         offset_code: 0.0,
     };
@@ -267,7 +267,7 @@ fn an_open_or_shorted_coil_a_backwards_sensor_a_jammed_armature_and_a_broken_spr
     let cases = [
         (
             "coil open",
-            vec![Injection::CoilOpen(true)],
+            vec![Stimulus::CoilOpen(true)],
             file_r,
             "no_response",
         ),
@@ -276,7 +276,7 @@ fn an_open_or_shorted_coil_a_backwards_sensor_a_jammed_armature_and_a_broken_spr
         ("coil shorted", vec![], 0.05 * file_r, "fault over_current"),
         (
             "sensor wired backwards",
-            vec![Injection::PositionSensor {
+            vec![Stimulus::PositionSensor {
                 gain_error: -2.0,
                 offset_code: stroke / code_m,
             }],
@@ -285,13 +285,13 @@ fn an_open_or_shorted_coil_a_backwards_sensor_a_jammed_armature_and_a_broken_spr
         ),
         (
             "jammed armature",
-            vec![Injection::Jammed(true)],
+            vec![Stimulus::Jammed(true)],
             file_r,
             "no_travel",
         ),
         (
             "broken spring",
-            vec![Injection::Mechanics {
+            vec![Stimulus::Mechanics {
                 mass_kg,
                 spring_n_per_m: 0.0,
                 preload_n: 0.0,
@@ -305,12 +305,12 @@ fn an_open_or_shorted_coil_a_backwards_sensor_a_jammed_armature_and_a_broken_spr
         noise: true,
         ..Options::default()
     });
-    for (what, injections, r, reason) in cases {
+    for (what, stimuli, r, reason) in cases {
         rig.inject.send(nominal).unwrap();
         rig.inject.send(straight).unwrap();
-        rig.inject.send(Injection::CoilOpen(false)).unwrap();
-        rig.inject.send(Injection::Jammed(false)).unwrap();
-        for i in injections {
+        rig.inject.send(Stimulus::CoilOpen(false)).unwrap();
+        rig.inject.send(Stimulus::Jammed(false)).unwrap();
+        for i in stimuli {
             rig.inject.send(i).unwrap();
         }
         rig.coil(r);
@@ -371,13 +371,13 @@ fn a_commissioned_actuator_is_tuned_and_its_measured_circuit_and_tuning_saved_on
     // spring 25 % stiffer with a preload of a tenth of its force over the stroke, 15 % less
     // mass and 20 % more friction.
     rig.coil(1.15 * f64::from(Actuator::PRODUCT.coil.resistance_ohm));
-    rig.inject.send(Injection::Surfaces(0.85)).unwrap();
+    rig.inject.send(Stimulus::Surfaces(0.85)).unwrap();
     let mech = Actuator::PRODUCT.mechanics;
     let spring_n_per_m = 1.25 * f64::from(mech.spring_n_per_m);
     let preload_n = 0.1 * spring_n_per_m * f64::from(mech.stroke_m);
     let mass_kg = 0.85 * f64::from(mech.mass_kg);
     rig.inject
-        .send(Injection::Mechanics {
+        .send(Stimulus::Mechanics {
             mass_kg,
             spring_n_per_m,
             preload_n,
@@ -542,12 +542,12 @@ fn a_solenoid_far_off_its_file_has_its_measured_whole_set_on_the_board_and_its_a
         noise: true,
         ..Options::default()
     });
-    rig.inject.send(Injection::Surfaces(1.3)).unwrap();
+    rig.inject.send(Stimulus::Surfaces(1.3)).unwrap();
     let mech = file.mechanics;
     let spring_n_per_m = 1.2 * f64::from(mech.spring_n_per_m);
     let mass_kg = 0.73 * f64::from(mech.mass_kg);
     rig.inject
-        .send(Injection::Mechanics {
+        .send(Stimulus::Mechanics {
             mass_kg,
             spring_n_per_m,
             preload_n: 0.08 * spring_n_per_m * f64::from(mech.stroke_m),
@@ -556,7 +556,7 @@ fn a_solenoid_far_off_its_file_has_its_measured_whole_set_on_the_board_and_its_a
         .unwrap();
     let code_m = f64::from(file.calibration().position.scale);
     rig.inject
-        .send(Injection::PositionSensor {
+        .send(Stimulus::PositionSensor {
             gain_error: 0.0155,
             offset_code: 0.0206 * f64::from(mech.stroke_m) / code_m,
         })

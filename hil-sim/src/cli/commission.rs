@@ -1,6 +1,6 @@
 //! `hil-sim commission <name> [--n N --seed S --tune]`: the board's commissioning routine
 //! on an actuator's file against N plants drawn wider than it (see
-//! [`crate::identification::commissioning::Draw`]), in parallel: the identification errors'
+//! [`crate::identification::commissioning::Specimen`]), in parallel: the identification errors'
 //! median, 99th percentile and maximum, the actuator time, the largest coil current, the
 //! endings; then the spring, the mass and the friction measured from closed-loop holds
 //! ([`crate::identification::commissioning::mechanics`]); with `--tune`, each commissioned
@@ -15,7 +15,7 @@ use rand::SeedableRng;
 use rayon::prelude::*;
 
 use crate::analysis::report::{sig, Table};
-use crate::identification::commissioning::{self, Draw};
+use crate::identification::commissioning::{self, Specimen};
 use crate::simulation::actuator;
 
 /// Arguments of `commission`.
@@ -120,7 +120,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         .into_par_iter()
         .map(|k| {
             let mut rng = rand_pcg::Pcg64::seed_from_u64(args.seed.wrapping_add(k as u64));
-            let draw = Draw::new(&mut rng);
+            let draw = Specimen::new(&mut rng);
             let o = commissioning::run(&a, Some(&draw))?;
             let plant = commissioning::true_plant(&a, Some(&draw))?;
             let Ok(r) = o.report else {

@@ -11,19 +11,18 @@ use ema::control::actuator::Actuator;
 use serialport::SerialPort;
 
 use super::VirtualArgs;
-use crate::board::{Injection, Options, VirtualBoard};
+use crate::board::{Options, Stimulus, VirtualBoard};
 
 /// What the virtual board's standard input takes.
-pub(super) const INJECTIONS: &str =
-    "supply V, position-open, position-ok, analog-v V, analog-ma MA, \
+pub(super) const STIMULI: &str = "supply V, position-open, position-ok, analog-v V, analog-ma MA, \
                           cut-save STEP, resistance OHM, surfaces SCALE, \
                           spring N_PER_M PRELOAD_N, \
                           mechanics MASS_KG N_PER_M PRELOAD_N FRICTION_N_S_PER_M, \
                           hang-main, run-main";
 
-/// A line of the virtual board's standard input, as an injection on a board whose
+/// A line of the virtual board's standard input, as a stimulus on a board whose
 /// actuator's file is `file` (a spring keeps its mass and friction).
-fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
+fn stimulus(line: &str, file: &Actuator) -> Option<Result<Stimulus, String>> {
     let mut words = line.split_whitespace();
     let verb = words.next()?;
     if verb == "mechanics" {
@@ -32,7 +31,7 @@ fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
             [mass_kg, spring_n_per_m, preload_n, friction_n_s_per_m]
                 if mass_kg > 0.0 && spring_n_per_m >= 0.0 && friction_n_s_per_m >= 0.0 =>
             {
-                Ok(Injection::Mechanics {
+                Ok(Stimulus::Mechanics {
                     mass_kg,
                     spring_n_per_m,
                     preload_n,
@@ -41,14 +40,14 @@ fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
             }
             _ => Err(format!(
                 "`{line}`: mechanics takes four numbers, the mass above zero, the spring and \
-                 the friction not below ({INJECTIONS})"
+                 the friction not below ({STIMULI})"
             )),
         });
     }
     let arg = words.next().map(str::parse::<f64>);
     let second = words.next().map(str::parse::<f64>);
     if let ("spring", Some(Ok(k)), Some(Ok(f0))) = (verb, &arg, &second) {
-        return Some(Ok(Injection::Mechanics {
+        return Some(Ok(Stimulus::Mechanics {
             mass_kg: f64::from(file.mechanics.mass_kg),
             spring_n_per_m: *k,
             preload_n: *f0,
@@ -56,23 +55,23 @@ fn injection(line: &str, file: &Actuator) -> Option<Result<Injection, String>> {
         }));
     }
     Some(match (verb, arg) {
-        ("supply", Some(Ok(v))) => Ok(Injection::Supply(v)),
-        ("position-open", None) => Ok(Injection::PositionOpen(true)),
-        ("position-ok", None) => Ok(Injection::PositionOpen(false)),
-        ("analog-v", Some(Ok(v))) => Ok(Injection::Analog {
+        ("supply", Some(Ok(v))) => Ok(Stimulus::Supply(v)),
+        ("position-open", None) => Ok(Stimulus::PositionOpen(true)),
+        ("position-ok", None) => Ok(Stimulus::PositionOpen(false)),
+        ("analog-v", Some(Ok(v))) => Ok(Stimulus::Analog {
             value: v,
             current: false,
         }),
-        ("analog-ma", Some(Ok(v))) => Ok(Injection::Analog {
+        ("analog-ma", Some(Ok(v))) => Ok(Stimulus::Analog {
             value: v * 1e-3,
             current: true,
         }),
-        ("cut-save", Some(Ok(v))) => Ok(Injection::CutSave(v as u64)),
-        ("resistance", Some(Ok(v))) => Ok(Injection::Resistance(v)),
-        ("surfaces", Some(Ok(v))) => Ok(Injection::Surfaces(v)),
-        ("hang-main", None) => Ok(Injection::HangMainLoop(true)),
-        ("run-main", None) => Ok(Injection::HangMainLoop(false)),
-        _ => Err(format!("unknown: `{line}` ({INJECTIONS})")),
+        ("cut-save", Some(Ok(v))) => Ok(Stimulus::CutSave(v as u64)),
+        ("resistance", Some(Ok(v))) => Ok(Stimulus::Resistance(v)),
+        ("surfaces", Some(Ok(v))) => Ok(Stimulus::Surfaces(v)),
+        ("hang-main", None) => Ok(Stimulus::HangMainLoop(true)),
+        ("run-main", None) => Ok(Stimulus::HangMainLoop(false)),
+        _ => Err(format!("unknown: `{line}` ({STIMULI})")),
     })
 }
 
@@ -110,7 +109,7 @@ pub(super) fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Resul
     }
     writeln!(
         out,
-        "virtual board on {path}: {} at {} Hz, {}; injections on standard input ({INJECTIONS})",
+        "virtual board on {path}: {} at {} Hz, {}; stimuli on standard input ({STIMULI})",
         a.actuator.as_deref().unwrap_or("the product's actuator"),
         board.scenario().rate_hz(),
         if a.speed > 0.0 {
@@ -135,7 +134,7 @@ pub(super) fn run_virtual(a: &VirtualArgs, out: &mut dyn Write) -> anyhow::Resul
     let speed = (a.speed > 0.0).then_some(a.speed);
     board.serve(&mut master, speed, &stop, |b| {
         while let Ok(line) = rx.try_recv() {
-            match injection(&line, &actuator) {
+            match stimulus(&line, &actuator) {
                 Some(Ok(i)) => {
                     eprintln!("virtual board: {i:?}");
                     b.inject(i);
@@ -154,11 +153,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_virtual_boards_mechanics_injection_takes_four_numbers_and_refuses_a_massless_one() {
-        let got = injection("mechanics 0.085 150 0.06 6", &Actuator::PRODUCT);
+    fn the_virtual_boards_mechanics_stimulus_takes_four_numbers_and_refuses_a_massless_one() {
+        let got = stimulus("mechanics 0.085 150 0.06 6", &Actuator::PRODUCT);
         assert_eq!(
             got,
-            Some(Ok(Injection::Mechanics {
+            Some(Ok(Stimulus::Mechanics {
                 mass_kg: 0.085,
                 spring_n_per_m: 150.0,
                 preload_n: 0.06,
@@ -170,14 +169,14 @@ mod tests {
             "mechanics 0 150 0.06 6",
             "mechanics 0.085 x 150 0.06 6",
         ] {
-            let Some(Err(e)) = injection(bad, &Actuator::PRODUCT) else {
+            let Some(Err(e)) = stimulus(bad, &Actuator::PRODUCT) else {
                 panic!("`{bad}` accepted");
             };
             assert!(e.contains("mechanics takes four numbers"), "{e}");
         }
         // `spring` keeps the file's mass and friction.
-        let Some(Ok(Injection::Mechanics { mass_kg, .. })) =
-            injection("spring 150 0.06", &Actuator::PRODUCT)
+        let Some(Ok(Stimulus::Mechanics { mass_kg, .. })) =
+            stimulus("spring 150 0.06", &Actuator::PRODUCT)
         else {
             panic!("spring refused");
         };

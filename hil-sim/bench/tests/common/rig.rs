@@ -7,14 +7,14 @@ use std::sync::{mpsc, Arc, Mutex};
 use std::thread;
 use std::time::Duration;
 
-use bench::board::{Dropped, Injection, Options, VirtualBoard};
+use bench::board::{Dropped, Options, Stimulus, VirtualBoard};
 use bench::cli;
 use bench::link::Link;
 use ema::device::protocol::{Command, Message, Reply};
 
 pub struct Rig {
     pub link: Link<serialport::TTYPort>,
-    pub inject: mpsc::Sender<Injection>,
+    pub inject: mpsc::Sender<Stimulus>,
     /// The board's ticks and the bytes it dropped, sent and received, as of its last
     /// batch.
     seen: Arc<Mutex<(u64, Dropped)>>,
@@ -47,7 +47,7 @@ impl Rig {
         // Opened (and its input flushed) before the board runs, so that its start
         // announcement is read.
         let mut link = cli::open(path.as_ref(), Duration::from_secs(5)).unwrap();
-        let (tx, rx) = mpsc::channel::<Injection>();
+        let (tx, rx) = mpsc::channel::<Stimulus>();
         let stop = Arc::new(AtomicBool::new(false));
         let stop2 = stop.clone();
         let peak = Arc::new(AtomicU64::new(0));

@@ -7,7 +7,7 @@ use ema::device::commission::Report;
 
 use super::{
     fit_armature, fit_spring, hold_inductance, hold_probe, measured, probe_capture, pull, Armature,
-    Circuit, Draw, HoldInductance, ProbeSample, Spring, HOLD_PROBE_RUNS,
+    Circuit, HoldInductance, ProbeSample, Specimen, Spring, HOLD_PROBE_RUNS,
 };
 use crate::simulation::plant::Params;
 use crate::simulation::scenario::{Sensors, TruePlant};
@@ -209,7 +209,7 @@ pub fn mechanics(
     a: &Actuator,
     report: &Report,
     plant: &Params,
-    draw: Option<&Draw>,
+    draw: Option<&Specimen>,
 ) -> Result<Holding, Error> {
     let (m, _) = measured(a, report, None)?;
     let mut faults = Vec::new();
@@ -251,10 +251,9 @@ pub fn mechanics(
 pub const HOLD_ATTEMPTS: u32 = 3;
 
 /// Share of an attempt's loop gains, the backstepping's `alpha` and the observer's
-/// bandwidth, the next attempt at the holds runs with \[-\] (see [`HOLD_ATTEMPTS`]).
-/// Gentler moves alone (the reference shaping's margin halved) did not help the 50 kHz
-/// pilot: 18 of 1000 drawn pilots measured nothing after three attempts, none with
-/// this share.
+/// bandwidth, the next attempt at the holds runs with \[-\] (see [`HOLD_ATTEMPTS`]): the
+/// attempts fail on an armature lighter than its file's, whose acceleration the observer
+/// mispredicts in proportion to the loop's gains, so the gains are what is lowered.
 pub const RETRY_GAIN_SHARE: f32 = 0.6;
 
 /// The tuning the holds' `attempt` (from 0) runs with on the measured actuator `m`: its
@@ -298,7 +297,7 @@ pub(super) fn hold_once(
     m: &Actuator,
     report: &Report,
     plant: &Params,
-    draw: Option<&Draw>,
+    draw: Option<&Specimen>,
 ) -> Result<(Result<Mechanics, &'static str>, f64), Error> {
     let mut sc = crate::simulation::actuator::scenario("holds", m)?;
     sc.plant = TruePlant::Given(plant.clone());

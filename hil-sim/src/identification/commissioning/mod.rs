@@ -2,7 +2,7 @@
 //! actuators: the core's identification ticking as the control interrupt runs it (convert,
 //! identify, drive the board's bridge on the mock pins), the converter with its typical
 //! noise, quantisation and delay, the plant's RK4 with its end stops. The routine starts
-//! from the file; the plant is the file's, or one drawn wider than the file (see [`Draw`]).
+//! from the file; the plant is the file's, or one drawn wider than the file (see [`Specimen`]).
 //!
 //! What is judged against the plant's own values: the resistance, the inductance at both
 //! stops (the plant's fringing included), the position readings at both stops (the drawn
@@ -57,8 +57,8 @@ pub use probe::{
     HOLD_PROBE_SHARE,
 };
 pub use run::{
-    closed_loop, curve_error, run, run_on, stops_correction, true_plant, ClosedLoop, Draw, Errors,
-    Factors, Outcome, CLOSED_LOOP_VALIDATION, CURVE_POSITIONS,
+    closed_loop, curve_error, run, run_on, stops_correction, true_plant, ClosedLoop, Errors,
+    Factors, Outcome, Specimen, CLOSED_LOOP_VALIDATION, CURVE_POSITIONS,
 };
 use spring::{corrected, pull};
 pub use spring::{fit_spring, Spring};

@@ -27,7 +27,7 @@ use crate::simulation::Error;
 /// inductances come from a few noisy current samples of a decay, so one noise sequence
 /// shared by every draw would give every draw the same error and hide its spread.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Draw {
+pub struct Specimen {
     /// Factors on the file's surfaces, resistance, spring rate, mass and friction.
     pub factors: Factors,
     /// The unknown preload of a file that gives none, as a share of the spring's force
@@ -45,7 +45,7 @@ pub struct Draw {
     pub vbus: ChannelError,
 }
 
-/// The factors a [`Draw`] puts on the file's values \[-\].
+/// The factors a [`Specimen`] puts on the file's values \[-\].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Factors {
     /// On the airgap's surfaces.
@@ -71,7 +71,7 @@ impl Factors {
     };
 }
 
-impl Draw {
+impl Specimen {
     /// One draw.
     pub fn new<R: Rng + ?Sized>(rng: &mut R) -> Self {
         let mut f = |s: f64| rng.random_range(1.0 - s..1.0 + s);
@@ -218,12 +218,12 @@ impl Outcome {
 ///
 /// # Errors
 /// An actuator whose settings do not derive.
-pub fn true_plant(a: &Actuator, draw: Option<&Draw>) -> Result<Params, Error> {
+pub fn true_plant(a: &Actuator, draw: Option<&Specimen>) -> Result<Params, Error> {
     Ok(plant_of(&scenario(a, true)?, draw))
 }
 
 /// The plant of the board scenario `sc`, or `draw`n from it.
-pub(super) fn plant_of(sc: &Scenario, draw: Option<&Draw>) -> Params {
+pub(super) fn plant_of(sc: &Scenario, draw: Option<&Specimen>) -> Params {
     let file = sc.plant.resolve(&sc.controller.plant);
     draw.map_or_else(|| file.clone(), |d| d.apply(&file))
 }
@@ -274,7 +274,7 @@ pub fn closed_loop(
     report: &Report,
     mechanics: Option<&Mechanics>,
     plant: &Params,
-    draw: Option<&Draw>,
+    draw: Option<&Specimen>,
 ) -> Result<ClosedLoop, Error> {
     let (m, _) = measured(a, report, mechanics)?;
     let rate = f64::from(a.board.rate_hz);
@@ -324,7 +324,7 @@ pub fn stops_correction(a: &Actuator, report: &Report) -> PositionCorrection {
 ///
 /// # Errors
 /// An actuator whose settings do not derive.
-pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
+pub fn run(a: &Actuator, draw: Option<&Specimen>) -> Result<Outcome, Error> {
     run_on(a, &plant_of(&scenario(a, true)?, draw), draw)
 }
 
@@ -333,7 +333,7 @@ pub fn run(a: &Actuator, draw: Option<&Draw>) -> Result<Outcome, Error> {
 ///
 /// # Errors
 /// An actuator whose settings do not derive; a plant that does not validate.
-pub fn run_on(a: &Actuator, plant: &Params, draw: Option<&Draw>) -> Result<Outcome, Error> {
+pub fn run_on(a: &Actuator, plant: &Params, draw: Option<&Specimen>) -> Result<Outcome, Error> {
     let sc = scenario(a, true)?;
     let code_m = f64::from(sc.controller.sense.position.scale);
     let plant = plant.clone();

@@ -11,6 +11,8 @@
 //! | [`DRAWN_DEVELOPMENT`] | the actuators the rules of [`crate::analysis::drawn`], the search of [`crate::analysis::tune`] and the derived thresholds were tried on while they were written | chooses rules |
 //! | [`RESULTS`] | the plants of every Monte Carlo and random-instant table of the family in `RESULTS.md` | judges |
 //! | [`DRAWN_JUDGE`] | the drawn actuators `RESULTS.md` judges `tune` and the monitors on ([`crate::analysis::outofsample`]) | judges |
+//! | [`COMMISSION_DEVELOPMENT`] | the specimens commissioning's fits and the tolerances they write were tried on while they were written (`hil-sim commission`) | chooses rules |
+//! | [`COMMISSION_JUDGE`] | the specimens commissioning and its tolerances are judged on (`hil-sim commission --seed`) | judges |
 //!
 //! A judging seed that was looked at while a rule was changed becomes a development seed:
 //! the next judgement then takes a seed nobody has drawn with.
@@ -32,3 +34,11 @@ pub const RESULTS: u64 = 3;
 /// example of a refused actuator): for that rule it is a development seed now, and the
 /// next judgement takes a seed nobody has drawn with.
 pub const DRAWN_JUDGE: u64 = 202;
+
+/// Seed of the specimens commissioning's fits, and the rule by which a fit's spread
+/// becomes the tolerance it writes, were tried on while they were written.
+pub const COMMISSION_DEVELOPMENT: u64 = 303;
+
+/// Seed of the specimens commissioning is judged on: no fit, rule or tolerance was
+/// chosen on it.
+pub const COMMISSION_JUDGE: u64 = 505;

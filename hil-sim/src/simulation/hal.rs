@@ -361,11 +361,15 @@ pub struct CalibrationClass {
     pub offset_code: f64,
 }
 
+/// The largest relative gain error of a production board's converter channel: the
+/// [`CalibrationClass::default`] every channel is drawn from \[-\].
+pub const CONVERTER_GAIN_CLASS: f64 = 0.005;
+
 impl Default for CalibrationClass {
-    /// +-0.5 % gain, +-2 codes offset.
+    /// +-0.5 % gain ([`CONVERTER_GAIN_CLASS`]), +-2 codes offset.
     fn default() -> Self {
         Self {
-            gain_rel: 0.005,
+            gain_rel: CONVERTER_GAIN_CLASS,
             offset_code: 2.0,
         }
     }

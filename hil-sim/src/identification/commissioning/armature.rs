@@ -14,6 +14,11 @@ pub struct Armature {
     /// The stiffness the spring's fit missed, as the moves read it (`K` in
     /// [`fit_armature`]) \[N/m\].
     pub stiffness_n_per_m: f64,
+    /// Two standard errors of the mass, from the fit's own spread over the moves
+    /// (the jackknife, each move left out in turn; NaN with a single move) \[kg\].
+    pub mass_uncertainty_kg: f64,
+    /// Two standard errors of the friction, the same way \[N s/m\].
+    pub friction_uncertainty_n_s_per_m: f64,
     /// Moves fitted.
     pub moves: usize,
 }
@@ -45,6 +50,13 @@ pub const STOP_SHARE: f64 = 0.01;
 /// The board's capture averages over its ticks, the current as its root mean square: a
 /// sliding-mode current that alternates from tick to tick would, sampled, integrate to a
 /// pull off by its ripple, and its mean would miss the ripple's share of the pull.
+///
+/// The fit's uncertainty is its spread over the moves, by the jackknife: the fit again
+/// with each move left out in turn, `var = (n - 1) / n sum (theta_k - mean)^2`. The
+/// residuals of a double integral are correlated along a move, so the normal equations'
+/// own covariance, which takes them as independent, would read the error many times too
+/// small; the moves are independent of one another (each its own start, speed and force
+/// error), so their scatter is what the fit's error is made of.
 #[must_use]
 #[expect(clippy::cast_precision_loss)]
 pub fn fit_armature(
@@ -67,11 +79,10 @@ pub fn fit_armature(
     if moves == 0 {
         return None;
     }
-    // m, c, K; then x0, v0 and e of each move.
-    let unknowns = 3 + 3 * moves;
     let dt = holds.move_dt_s;
-    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
-    for (u, &k) in usable.iter().enumerate() {
+    // Each move's rows: the three common unknowns m, c, K, then its own x0, v0, e.
+    let mut blocks: Vec<Vec<([f64; 6], f64)>> = Vec::new();
+    for &k in &usable {
         let seg = &holds.moves[k];
         let (x0, x1) = (spring.holds.get(k - 1)?.0, spring.holds.get(k)?.0);
         let settled = seg
@@ -81,6 +92,7 @@ pub fn fit_armature(
         // Trapezoidal integrals from the move's start.
         let (mut f1, mut f2, mut j1, mut j2) = (0.0, 0.0, 0.0, 0.0);
         let mut last: Option<(f64, f64)> = None;
+        let mut block = Vec::new();
         for (n, &(y, i)) in seg.iter().take(settled + 1).enumerate() {
             let (x, f) = force(y, i);
             let net = f - spring.n_per_m * x - spring.preload_n;
@@ -95,26 +107,67 @@ pub fn fit_armature(
             }
             last = Some((net, dx));
             let t = n as f64 * dt;
-            let mut r = vec![0.0; unknowns];
-            r[0] = dx;
-            r[1] = j1;
-            r[2] = j2;
-            r[3 + 3 * u] = 1.0;
-            r[4 + 3 * u] = t;
-            r[5 + 3 * u] = 0.5 * t * t;
-            rows.push((r, f2));
+            block.push(([dx, j1, j2, 1.0, t, 0.5 * t * t], f2));
         }
+        blocks.push(block);
     }
-    let theta = least_squares(&rows, unknowns)?;
+    let theta = fit_moves(&blocks.iter().collect::<Vec<_>>())?;
     if theta[0].is_nan() || theta[0] <= 0.0 {
         return None;
     }
+    // The jackknife over the moves: NaN where a move left out leaves nothing to fit.
+    let (mass_uncertainty_kg, friction_uncertainty_n_s_per_m) = if moves < 2 {
+        (f64::NAN, f64::NAN)
+    } else {
+        let leave_one_out: Vec<[f64; 2]> = (0..moves)
+            .map(|out| {
+                let rest: Vec<_> = (0..moves)
+                    .filter(|&k| k != out)
+                    .map(|k| &blocks[k])
+                    .collect();
+                fit_moves(&rest).map_or([f64::NAN; 2], |t| [t[0], t[1]])
+            })
+            .collect();
+        let n = moves as f64;
+        let spread = |p: usize| {
+            let mean = leave_one_out.iter().map(|t| t[p]).sum::<f64>() / n;
+            let var = (n - 1.0) / n
+                * leave_one_out
+                    .iter()
+                    .map(|t| (t[p] - mean).powi(2))
+                    .sum::<f64>();
+            2.0 * var.sqrt()
+        };
+        (spread(0), spread(1))
+    };
     Some(Armature {
         mass_kg: theta[0],
         friction_n_s_per_m: theta[1],
         stiffness_n_per_m: theta[2],
+        mass_uncertainty_kg,
+        friction_uncertainty_n_s_per_m,
         moves,
     })
+}
+
+/// The least squares fit of [`fit_armature`]'s equation to the moves' `blocks` (each
+/// row the common unknowns' three coefficients and the move's own three, and the
+/// right-hand side): `m`, `c`, `K`, then each move's `x0`, `v0` and `e`.
+fn fit_moves(blocks: &[&Vec<([f64; 6], f64)>]) -> Option<Vec<f64>> {
+    let unknowns = 3 + 3 * blocks.len();
+    let rows: Vec<(Vec<f64>, f64)> = blocks
+        .iter()
+        .enumerate()
+        .flat_map(|(u, block)| {
+            block.iter().map(move |(c, y)| {
+                let mut r = vec![0.0; unknowns];
+                r[..3].copy_from_slice(&c[..3]);
+                r[3 + 3 * u..6 + 3 * u].copy_from_slice(&c[3..]);
+                (r, *y)
+            })
+        })
+        .collect();
+    least_squares(&rows, unknowns)
 }
 
 /// Least squares `theta` of `y = r . theta` over `rows`, by the normal equations with the

@@ -5,31 +5,42 @@ use ema::control::actuator::Actuator;
 use ema::device::commission::Report;
 
 use super::Mechanics;
+use crate::simulation::hal::CONVERTER_GAIN_CLASS;
 use crate::simulation::Error;
 
-/// How far the mass [`fit_armature`](super::fit_armature) reads may be off, relative (the
-/// `hil-sim commission` table's row of it, whose target this is): above the largest error
-/// over the family's drawn plants but for about one drawn positioner in a thousand (a
-/// magnet 30 % weaker than its file, a damping ratio below 0.1), which the row counts.
-pub const MASS_CLASS: f64 = 0.08;
+/// How far the converters alone may scale what a commissioning measures, relative: a
+/// current channel reading `g i` and a bus channel reading `h u` read the resistance and
+/// every inductance `h / g` times theirs (`R = u / i`, `L = psi / i` with `psi` integrated
+/// from `u - R i`), and so the pull `i^2 L' / 2`, and with it the spring, the mass and the
+/// friction the pull is read against, `g h` times. Each gain within
+/// [`CONVERTER_GAIN_CLASS`], either product is within twice it, to first order. No fit
+/// sees this error: it scales every reading alike.
+pub const CONVERTER_SCALE: f64 = 2.0 * CONVERTER_GAIN_CLASS;
 
-/// How far the airgap surfaces of the circuit [`Circuit::fit`](super::Circuit::fit) reads
-/// may be off, relative: the inductance curve's target (the `hil-sim commission` table's
-/// rows of it), above its largest error over the family's drawn plants.
-pub const SURFACE_CLASS: f64 = 0.05;
+/// The coverage factor of a fit's expanded uncertainty at 99 % for `dof` degrees of
+/// freedom: Student's `t` at 0.995, by which a standard error is multiplied so that the
+/// interval holds the true value 99 times in 100 when the fit's error is its readings'
+/// scatter (two standard errors hold it 95 times only with many degrees of freedom; a
+/// line through four holds has two). 99 %, not the 95 % of a datasheet: the tolerance
+/// written is the uncertainty set `tune` validates on and the robust law is built for, a
+/// plant outside it is one nothing was checked on. Beyond ten degrees of freedom the
+/// table's last entry, 23 % above the limit 2.576: on the safe side.
+#[must_use]
+pub fn coverage_factor(dof: usize) -> f64 {
+    const T_995: [f64; 10] = [
+        63.657, 9.925, 5.841, 4.604, 4.032, 3.707, 3.499, 3.355, 3.250, 3.169,
+    ];
+    T_995.get(dof.max(1) - 1).copied().unwrap_or(T_995[9])
+}
 
-/// How far the spring's rate [`fit_spring`](super::fit_spring) reads may be off, relative
-/// (the `hil-sim commission` table's row of it, whose target this is): above the largest
-/// error over the family's drawn plants, once the holds' windows are averaged with the
-/// armature's inertia taken out.
-pub const SPRING_CLASS: f64 = 0.05;
-
-/// How far the friction [`fit_armature`](super::fit_armature) reads may be off, as a share
-/// of the critical damping `2 sqrt(K m)`: above the largest error over the family's drawn
-/// plants (the `hil-sim commission` table's row of it, whose target this is). Lightly
-/// damped actuators read their friction tens of per cent off, but the error is this small
-/// against the damping that matters to the loop.
-pub const FRICTION_CLASS_DAMPING: f64 = 0.05;
+/// The relative tolerance a fit leaves on a `value` it read with two standard errors
+/// `uncertainty` on `dof` degrees of freedom: the converters' scale ([`CONVERTER_SCALE`])
+/// plus the fit's 99 % interval ([`coverage_factor`]); NaN where the fit has no
+/// uncertainty (one move: nothing to compare it with), which keeps the file's.
+#[must_use]
+pub fn fitted_tolerance(value: f64, uncertainty: f64, dof: usize) -> f64 {
+    CONVERTER_SCALE + coverage_factor(dof) * 0.5 * uncertainty / value.abs()
+}
 
 /// The least iron reluctance an actuator measured by a commissioning keeps, as a share of
 /// the closed gap's total (see [`measured`], [`Circuit::fit`](super::Circuit::fit)): above
@@ -51,15 +62,18 @@ pub const IRON_SHARE: f32 = 1e-6;
 /// fringing coefficient and aspect kept), or the fitted circuit's inductances at the two
 /// stops. Without them, the stops' two inductances.
 ///
-/// A measured spring, mass and friction carry the tolerance their measurement leaves,
-/// when it is below the file's: the spring [`SPRING_CLASS`], the mass [`MASS_CLASS`], the
-/// friction [`FRICTION_CLASS_DAMPING`] of the critical damping `2 sqrt(K m)` of the
-/// measured spring and mass (a datasheet's friction is an estimate, +-50 % by default;
-/// the moves read it to a few hundredths of the critical damping). The surfaces, the
-/// paper's uncertainty, carry the spread of the circuit's fit: [`SURFACE_CLASS`], or the
-/// largest deviation of the written form from the holds' probes where that is larger
-/// ([`Mechanics::form_deviation`]), never more than the file's unless the probes ask for
-/// it. The resistance keeps the file's: it moves with the coil's temperature.
+/// A measured spring, mass and friction carry the tolerance their measurement leaves
+/// ([`fitted_tolerance`]), when it is below the file's: the converters' scale and the
+/// fit's own 99 % interval, the spring's from the scatter of the holds about its line
+/// (two degrees of freedom over the four holds), the mass's and the friction's from their
+/// scatter over the moves (the jackknife, [`fit_armature`](super::fit_armature); one less
+/// degree of freedom than moves). The surfaces, the paper's uncertainty, carry what the
+/// circuit's readings leave: the converters' scale, plus the largest deviation of the
+/// written form from the holds' probes ([`Mechanics::form_deviation`]) or the 99 %
+/// interval of the least certain reading the circuit was fitted to (from two standard
+/// errors of a hold's probe, or [`STOP_INDUCTANCE_CLASS`](super::STOP_INDUCTANCE_CLASS)
+/// at the stops, each read over many samples) where that is larger; never more than the file's unless the probes ask for it. The resistance keeps
+/// the file's: it moves with the coil's temperature.
 ///
 /// The two-inductance form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the
 /// iron's `rho_0` positive. A real circuit's fringing bends the line (the surface grows
@@ -80,15 +94,22 @@ pub fn measured(
     if let Some(m) = mechanics {
         a.mechanics.spring_n_per_m = m.spring.n_per_m as f32;
         a.mechanics.preload_n = m.spring.preload_n as f32;
-        a.tolerance.spring = a.tolerance.spring.min(SPRING_CLASS as f32);
+        let holds = crate::simulation::actuator::SEQUENCE.len();
+        let spring = fitted_tolerance(m.spring.n_per_m, m.spring.spread_n_per_m, holds - 2);
+        a.tolerance.spring = a.tolerance.spring.min(spring as f32);
         if let Some(arm) = m.armature {
+            let dof = arm.moves.saturating_sub(1);
             a.mechanics.mass_kg = arm.mass_kg as f32;
             a.mechanics.friction_n_s_per_m = arm.friction_n_s_per_m.max(0.0) as f32;
-            a.tolerance.mass = a.tolerance.mass.min(MASS_CLASS as f32);
-            let critical = 2.0 * (m.spring.n_per_m * arm.mass_kg).max(0.0).sqrt();
-            let class = FRICTION_CLASS_DAMPING * critical / arm.friction_n_s_per_m;
-            if arm.friction_n_s_per_m > 0.0 && class < f64::from(a.tolerance.friction) {
-                a.tolerance.friction = class as f32;
+            let mass = fitted_tolerance(arm.mass_kg, arm.mass_uncertainty_kg, dof);
+            a.tolerance.mass = a.tolerance.mass.min(mass as f32);
+            let friction = fitted_tolerance(
+                arm.friction_n_s_per_m,
+                arm.friction_uncertainty_n_s_per_m,
+                dof,
+            );
+            if arm.friction_n_s_per_m > 0.0 {
+                a.tolerance.friction = a.tolerance.friction.min(friction as f32);
             }
         }
     }
@@ -127,8 +148,22 @@ pub fn measured(
     a.tuning = None;
     a.plant().map_err(Error::Actuator)?;
     #[expect(clippy::cast_possible_truncation)]
-    if let Some(d) = mechanics.and_then(|m| m.form_deviation(&a)) {
-        a.tolerance.surface = a.tolerance.surface.min(SURFACE_CLASS as f32).max(d as f32);
+    if let Some(m) = mechanics {
+        let d = m.form_deviation(&a).unwrap_or(0.0);
+        let least_certain = m
+            .inductances
+            .iter()
+            .flatten()
+            .map(|h| h.spread_h / h.inductance_h)
+            .fold(super::STOP_INDUCTANCE_CLASS, f64::max)
+            * 0.5
+            * coverage_factor(usize::MAX);
+        let fitted = CONVERTER_SCALE + d.max(least_certain);
+        a.tolerance.surface = a
+            .tolerance
+            .surface
+            .min(fitted as f32)
+            .max((CONVERTER_SCALE + d) as f32);
     }
     Ok((a, moved))
 }

@@ -27,9 +27,12 @@
 //! ([`HOLD_ATTEMPTS`]), and the actuator time counts every attempt.
 //!
 //! The actuator file a commissioning writes ([`measured`]) carries, for the spring, the
-//! mass and the friction, the tolerance their measurement leaves ([`SPRING_CLASS`],
-//! [`MASS_CLASS`], [`FRICTION_CLASS_DAMPING`]) rather than the datasheet's, and for the
-//! surfaces the spread of the circuit's fit ([`SURFACE_CLASS`]): `tune` then validates
+//! mass and the friction, the tolerance their measurement leaves rather than the
+//! datasheet's: the converters' scale ([`CONVERTER_SCALE`]) and each fit's own 99 %
+//! interval ([`fitted_tolerance`]); for the surfaces what the circuit's readings leave
+//! (see [`measured`]). No class is set from the errors seen on drawn plants: the
+//! `hil-sim commission` table judges each tolerance against the true error on draws the
+//! rule never saw (its rows "error / its tolerance"). `tune` then validates
 //! its gains on plants around what was measured, as far off as the measurement may be,
 //! and the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).
@@ -48,9 +51,7 @@ pub use holds::{
     decimations, hold_tuning, mechanics, Holding, Holds, Mechanics, HOLD_ATTEMPTS,
     HOLD_WINDOW_SHARE, MOVE_CAPTURE_MOVES, REST_SHARE, RETRY_GAIN_SHARE,
 };
-pub use measured::{
-    measured, FRICTION_CLASS_DAMPING, IRON_SHARE, MASS_CLASS, SPRING_CLASS, SURFACE_CLASS,
-};
+pub use measured::{coverage_factor, fitted_tolerance, measured, CONVERTER_SCALE, IRON_SHARE};
 pub use probe::{
     hold_inductance, hold_probe, probe_capture, probe_inductance, HoldInductance, ProbeSample,
     HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_SPREAD, HOLD_PROBE_RUNS,

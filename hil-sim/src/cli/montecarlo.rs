@@ -16,8 +16,8 @@
 //! per channel); the targets stay judged on the true position, and the output gives apart
 //! the sensor's share of the steady error
 //! ([`crate::simulation::hal::sensor_position_error_m`]) and the draws that miss only
-//! because of it. `--spread K` draws the plant beyond the controller's tolerances (spreads
-//! times `K`) and sorts every draw into pass, named fault with the bridge coasting, or
+//! because of it. `--widen K` draws the plant beyond the controller's tolerances (each
+//! tolerance times `K`) and sorts every draw into pass, named fault with the bridge coasting, or
 //! silent failure ([`Class`]).
 
 use std::io::Write;
@@ -56,10 +56,10 @@ pub struct Args {
     /// (+-0.5 % gain, +-2 codes offset on the position, current and bus channels).
     #[arg(long)]
     pub sensor_errors: bool,
-    /// Factor on the plant spreads (resistance, spring, mass, friction) beyond the
-    /// controller's tolerances; 1 is the design set.
+    /// Factor that widens the plant's tolerances (resistance, spring, mass, friction)
+    /// beyond the controller's; 1 is the design set.
     #[arg(long, default_value_t = 1.0)]
-    pub spread: f64,
+    pub widen: f64,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -532,13 +532,13 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         Some(r) => format!("{}-{}khz-montecarlo", sc.name, sig(r / 1e3, 3)),
     });
     anyhow::ensure!(
-        args.spread.is_finite() && args.spread > 0.0,
-        "--spread = {}: a positive factor",
-        args.spread
+        args.widen.is_finite() && args.widen > 0.0,
+        "--widen = {}: a positive factor",
+        args.widen
     );
     let options = Options {
         sensor_errors: args.sensor_errors.then(CalibrationClass::default),
-        spread: args.spread,
+        widen: args.widen,
     };
     let substeps = if let Some(n) = args.substeps {
         anyhow::ensure!(n > 0, "--substeps = 0: at least one RK4 step per period");
@@ -570,13 +570,13 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         args.n,
         args.seed
     )?;
-    if args.spread != 1.0 {
+    if args.widen != 1.0 {
         let u = options.uncertainty(&sc);
         writeln!(
             out,
-            "plant spreads {} times the controller's: R +-{} %, K +-{} %, m +-{} %, lambda \
+            "plant tolerances {} times the controller's: R +-{} %, K +-{} %, m +-{} %, lambda \
              +-{} % (pole surfaces within the physical bounds)",
-            sig(args.spread, 3),
+            sig(args.widen, 3),
             sig(100.0 * u.resistance_rel, 3),
             sig(100.0 * u.spring_rel, 3),
             sig(100.0 * u.mass_rel, 3),

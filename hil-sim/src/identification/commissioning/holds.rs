@@ -32,7 +32,8 @@ pub struct Mechanics {
     pub armature: Option<Armature>,
     /// The inductance at each hold, from its probe
     /// ([`probe_inductance`](super::probe_inductance)); none where no probe ran or its
-    /// spread exceeds [`HOLD_PROBE_MAX_SPREAD`](super::HOLD_PROBE_MAX_SPREAD).
+    /// uncertainty exceeds
+    /// [`HOLD_PROBE_MAX_UNCERTAINTY`](super::HOLD_PROBE_MAX_UNCERTAINTY).
     pub inductances: [Option<HoldInductance>; crate::simulation::actuator::SEQUENCE.len()],
     /// The magnetic circuit fitted to the stops' inductances and the holds'
     /// ([`Circuit::fit`]): the pull the spring and the mass are read with.
@@ -131,7 +132,7 @@ impl Mechanics {
     }
 }
 
-/// A hold whose window's position spreads (one standard deviation) over more than this
+/// A hold whose window's position scatters (one standard deviation) over more than this
 /// share of the stroke is not at rest: the loop limit-cycles about it.
 pub const REST_SHARE: f64 = 0.002;
 

@@ -29,7 +29,7 @@
 //! The actuator file a commissioning writes ([`measured`]) carries, for the spring, the
 //! mass and the friction, the tolerance their measurement leaves ([`SPRING_CLASS`],
 //! [`MASS_CLASS`], [`FRICTION_CLASS_DAMPING`]) rather than the datasheet's, and for the
-//! surfaces the spread of the circuit's fit ([`SURFACE_CLASS`]): `tune` then validates
+//! surfaces the uncertainty of the circuit's fit ([`SURFACE_CLASS`]): `tune` then validates
 //! its gains on plants around what was measured, as far off as the measurement may be,
 //! and the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).
@@ -53,7 +53,7 @@ pub use measured::{
 };
 pub use probe::{
     hold_inductance, hold_probe, probe_capture, probe_inductance, HoldInductance, ProbeSample,
-    HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_SPREAD, HOLD_PROBE_RUNS,
+    HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_UNCERTAINTY, HOLD_PROBE_RUNS,
     HOLD_PROBE_SHARE,
 };
 pub use run::{

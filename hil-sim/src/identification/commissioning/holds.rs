@@ -240,15 +240,15 @@ pub fn mechanics(
 
 /// Attempts at the holds of [`mechanics`] (and of the bench's): the first with the
 /// default tuning, each after a fault with a slower loop, the backstepping's `alpha` and
-/// the observer's bandwidth [`RETRY_GAIN_SHARE`] times the attempt's before. On the
-/// family's drawn plants the holds that a monitor ends are armatures 10-30 % lighter
-/// than their file's, whose moves' acceleration the observer, with the file's mass,
-/// mispredicts in proportion: on the 12 V solenoid the stuck-sensor monitor ends them,
-/// on the 50 kHz pilot the observer's disturbance runs away on the first move, which
-/// overshoots its target several times over with the coil off, and the residual
-/// detector, reading the back-EMF from that velocity, names `current_stuck`. The
-/// slower loop holds them to their end (`hil-sim commission NAME` counts the attempts
-/// and the holds that measured nothing).
+/// the observer's bandwidth [`RETRY_GAIN_SHARE`] times the attempt's before. A hold a
+/// monitor ends is most often an armature lighter than its file's: the observer, with
+/// the file's mass, mispredicts its acceleration in proportion to the loop's gains, and a
+/// fast loop turns that into a runaway disturbance estimate, an overshoot, and a velocity
+/// from which a detector names a fault the board does not have. A slower loop holds such
+/// an armature to the end. Three attempts bring the gains down to `0.6^2 = 0.36` of the
+/// default, slow enough for an armature tens of per cent lighter, for at most three
+/// holds' time; holds that still fault then point at something else than the mass
+/// (`hil-sim commission NAME` counts the attempts and the holds that measured nothing).
 pub const HOLD_ATTEMPTS: u32 = 3;
 
 /// Share of an attempt's loop gains, the backstepping's `alpha` and the observer's

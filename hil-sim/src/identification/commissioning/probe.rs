@@ -7,18 +7,18 @@ use ema::device::commission::Report;
 use super::{corrected, Circuit};
 
 /// Share of the rated current the inductance probe at each hold steps the desired
-/// current up and down by: small beside the hold's current, so that the residual
-/// detector's bounds, which the probe's steps test at every tick, hold on a coil the
-/// stops' two-point line misses by a few per cent between them (at a tenth of the
-/// rating, a drawn micro-valve's probe latched `coil_short`).
+/// current up and down by. A larger step stands further above the converter's noise, but
+/// every step tests the residual detector's bounds, which rest on the stops' two-point
+/// line and miss a coil by a few per cent between the stops: a step small beside the
+/// hold's current stays inside them, so that a probe never latches a fault (such as
+/// `coil_short`) on a healthy coil.
 pub const HOLD_PROBE_SHARE: f64 = 0.05;
 
 /// Periods at each level of the hold's probe: the second half's readings are each
 /// level's mean, and the relation the probe's estimate rests on is exact whether or not
-/// the coil's current settles within a level. Longer levels do worse: sized at four
-/// times the closed coil's slew over the step, they read the positioner's holds with a
-/// median error of 1.6 % instead of 0.28 % over 1000 drawn plants (the pull's square
-/// wave, slower, moves the armature more).
+/// the coil's current settles within a level, so a level need not last until it settles.
+/// Short levels keep the pull's square wave fast beside the armature, which then barely
+/// moves under it; longer ones let it follow the wave, and its motion biases the reading.
 pub const HOLD_PROBE_HALF_TICKS: u16 = 16;
 
 /// Largest uncertainty (two standard errors, relative) of an inductance a hold's probe
@@ -30,11 +30,11 @@ pub const HOLD_PROBE_MAX_UNCERTAINTY: f64 = 0.03;
 /// ([`probe_capture`]); [`HOLD_PROBE_RUNS`] probes per hold.
 pub const HOLD_PROBE_CYCLES: u16 = 7;
 
-/// Probes at each hold, one captured at a time: the estimate's uncertainty falls as the square
-/// root of their cycles' number, and three give about as many as one probe of 16 cycles
-/// (levels half as long, more cycles in the same capture, read a drawn 12 V solenoid's
-/// holds up to 7 % off, measured before [`hold_inductance`] took out the supply's sag and
-/// the armature's motion: its coil does not step within them).
+/// Probes at each hold, one captured at a time: the estimate's uncertainty falls as the
+/// square root of the number of its cycles, and three probes of [`HOLD_PROBE_CYCLES`]
+/// give about as many as one of 16 cycles would. That one would need levels half as long
+/// to fit the capture, within which a slow coil's current does not step; more probes cost
+/// only the hold's time.
 pub const HOLD_PROBE_RUNS: usize = 3;
 
 /// The board's capture of a probe of `ticks`, the converter `delay` ticks late: the

@@ -201,6 +201,18 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     writeln!(w, "{}", super::actuators::family_table()?.to_text())?;
     rederived(args, w, out)?;
 
+    family_montecarlo(args, w, out)?;
+    family_faults(args, w, out)?;
+    random_faults(args, w, out)?;
+
+    sensor_errors(args, w, out)?;
+    beyond(args, w, out)?;
+    drawn_actuators(args, w, out)?;
+    Ok(Outcome { text: md })
+}
+
+/// The section on the Monte Carlo of every member, at its own rate and at the common one.
+fn family_montecarlo(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
     writeln!(
         w,
         "## Monte Carlo of every member (`hil-sim montecarlo <name> --n {n} --seed {seed} \
@@ -251,7 +263,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                     sensor_errors: false,
                     widen: 1.0,
                     quiet: true,
-                    output: sub(&format!("{}-{}hz", e.name, rate_hz)),
+                    output: scratch(args, &format!("{}-{}hz", e.name, rate_hz)),
                 },
                 &mut Vec::new(),
             )?;
@@ -284,7 +296,11 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         }
     }
     writeln!(w, "{}", mc.to_text())?;
+    Ok(())
+}
 
+/// The section on the faults injected during every member's evaluation sequence.
+fn family_faults(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
     writeln!(
         w,
         "## Faults on every member (`hil-sim faults <name>`)\n\n\
@@ -307,7 +323,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                 supply_v: None,
                 random: None,
                 seed: 1,
-                output: sub(&format!("{}-faults", e.name)),
+                output: scratch(args, &format!("{}-faults", e.name)),
             },
             &mut Vec::new(),
         )?;
@@ -328,12 +344,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         ft.push(std::iter::once(name).chain(cells));
     }
     writeln!(w, "{}", ft.to_text())?;
-    random_faults(args, w, out)?;
-
-    sensor_errors(args, w, out)?;
-    beyond(args, w, out)?;
-    drawn_actuators(args, w, out)?;
-    Ok(Outcome { text: md })
+    Ok(())
 }
 
 /// The section that re-derives every member's tuned file with `tune` as a user runs it.

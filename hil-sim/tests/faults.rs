@@ -5,7 +5,7 @@
 //! of the family, healthy runs raise nothing.
 
 use ema::control::supervisor::Fault;
-use hil_sim::analysis::faults::{at_random, evaluate, Case, Outcome, DEADLINE_S};
+use hil_sim::analysis::faults::{cases, evaluate, Case, Outcome, DEADLINE_S};
 use hil_sim::simulation::actuator::{self, FAMILY};
 use hil_sim::simulation::scenario::Injected;
 use hil_sim::{run, Scenario};
@@ -28,7 +28,7 @@ fn assert_named_safely(o: &Outcome) {
 }
 
 fn product_cases() -> Vec<Case> {
-    at_random(&Scenario::product_sequence(20e3, 24.0).unwrap()).unwrap()
+    cases(&Scenario::product_sequence(20e3, 24.0).unwrap()).unwrap()
 }
 
 fn outcome(name: &str) -> Outcome {
@@ -75,7 +75,7 @@ enum Pin {
 
 use Pin::{Late, Misnamed, Named, Unnamed};
 
-/// Each member's table, in the order of [`at_random`]: position sensor open, shorted, stuck;
+/// Each member's table, in the order of [`cases`]: position sensor open, shorted, stuck;
 /// current sensor stuck, offset; coil open, short; supply sag, over-voltage; missed
 /// deadlines; tick stops; plant outside the bounds (timed from power-up). The bounds are
 /// the measured latencies rounded up to the next 50 us.
@@ -210,7 +210,7 @@ fn every_member_s_fault_table_is_as_pinned() {
     assert_eq!(pinned, family, "every member of the family has its table");
     for (member, pins) in &TABLES {
         let (name, act) = actuator::load(member).unwrap();
-        let all = at_random(&actuator::scenario(&name, &act).unwrap()).unwrap();
+        let all = cases(&actuator::scenario(&name, &act).unwrap()).unwrap();
         assert_eq!(all.len(), pins.len(), "{member}");
         for (c, pin) in all.iter().zip(pins) {
             let o = evaluate(c).unwrap();
@@ -273,7 +273,7 @@ fn current_stuck_is_unobservable_within_the_deadline() {
     ] {
         let (name, act) = actuator::load(member).unwrap();
         let base = actuator::scenario(&name, &act).unwrap();
-        let all = at_random(&base).unwrap();
+        let all = cases(&base).unwrap();
         let c = all
             .iter()
             .find(|c| c.name == "current sensor stuck")
@@ -369,7 +369,7 @@ fn a_tick_that_stops_coasts_the_bridge_within_half_a_millisecond() {
 fn without_the_injection_nothing_is_raised() {
     for e in &FAMILY {
         let (name, act) = actuator::load(e.name).unwrap();
-        for mut c in at_random(&actuator::scenario(&name, &act).unwrap()).unwrap() {
+        for mut c in cases(&actuator::scenario(&name, &act).unwrap()).unwrap() {
             if c.name == "plant outside the bounds" || c.name == "tick stops" {
                 continue;
             }
@@ -405,7 +405,7 @@ fn a_frozen_reading_is_observable_once_its_quantity_moves() {
 /// coasting after every fault; each fault that changes what the tick reads, the coil or
 /// the interrupt's timing (sensor open or shorted, coil open, supply sag and
 /// over-voltage, missed deadlines, a tick that stops) named as expected within the
-/// deadline every time. The frozen readings and the misnamed at_random are reported, not
+/// deadline every time. The frozen readings and the misnamed cases are reported, not
 /// required, in `RESULTS.md` (`hil-sim faults NAME --random 200`).
 #[test]
 fn faults_at_random_instants_are_named_on_drawn_plants() {

@@ -415,6 +415,11 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
     }
 
     /// The script; what the board sent and how long its ticks took.
+    #[expect(
+        clippy::too_many_lines,
+        reason = "the session's script, step after step in the order the board sees them: \
+                  split, the order would be scattered over functions"
+    )]
     pub fn run(mut self, clock: &mut dyn FnMut() -> u32) -> Result<Outcome, &'static str> {
         for _ in 0..40 {
             self.tick(clock)?;

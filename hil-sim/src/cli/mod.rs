@@ -33,6 +33,12 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 pub mod actuators;
+// Temporary: `commission::run` has 190 lines against the 180 of clippy.toml and is being
+// changed elsewhere; this allow goes once it is split (or below the threshold).
+#[allow(
+    clippy::too_many_lines,
+    reason = "temporary: commission::run is being changed elsewhere"
+)]
 pub mod commission;
 pub mod compare;
 pub mod drawn;

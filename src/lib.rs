@@ -159,6 +159,11 @@
 //! | commissioning | measuring an actuator on the board: the coil's resistance and inductance and the position sensor's readings at the stops, loop open ([`device::commission`]), then with the loop closed the **holds**, which the bench tool orders |
 //! | hold | during commissioning, the armature held in closed loop at 1/8, 7/8, 3/8 and 3/4 of the stroke, where the spring, its preload and the inductance are measured |
 //! | probe | a voltage step during a hold or at a stop, from whose current response the inductance there is read |
+//! | uncertainty | of a measured value: two standard errors of its fit (the expanded uncertainty, k = 2), in the value's unit (`uncertainty_ohm`, `uncertainty_m` of a [`device::commission::Report`]); the controller's **uncertainty set** (see bounds) is always named in full |
+//! | tolerance | a stated relative half-width about a nominal value, `+-` (the plant's tolerances of mass, spring, friction and resistance; how far commissioning admits a coil off its file, [`device::commission::FILE_TOLERANCE`]) |
+//! | allowance | a margin a check adds for what it does not model (the current limit's ripple allowance; the residual's allowance on the back-EMF, [`control::supervisor::monitor::EMF_ALLOWANCE`]) |
+//! | peak-to-peak | the largest less the smallest of readings over a window (the current zero's samples, a stop's position window) |
+//! | fringing spread | the growth `k` of each pole side per metre of gap, `S(g) = (a + k g)(b + k g)` (`magnetics.geometry.fringing_spread`); the only meaning of "spread" |
 //!
 //! ## What the paper gets wrong or leaves loose, and what the code does
 //!

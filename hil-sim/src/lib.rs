@@ -93,7 +93,11 @@
 //! | injection | a fault a scenario injects at an instant ([`simulation::scenario::Injection`]); what the bench's test rig does to the virtual board is a stimulus (the `bench` crate) |
 //! | corner plant | a plant at the extremes of the uncertainty set, where `tune` runs its candidates ([`analysis::tune::corners`]) |
 //! | seed | the start of a reproducible stream of draws; which seed chooses and which judges: [`analysis::seeds`] |
-//! | class | a stated tolerance band: of a converter's gain and offset ([`simulation::hal::CalibrationClass`]), or of a quantity commissioning measures ([`identification::commissioning`]) |
+//! | uncertainty | of a measured value: two standard errors of its fit (k = 2), in the value's unit (`uncertainty_h` of a [`identification::commissioning::HoldInductance`], `uncertainty_n_per_m` of a [`identification::commissioning::Spring`]); the **uncertainty set** a plant is drawn from ([`simulation::scenario::Uncertainty`]) is always named in full |
+//! | tolerance | a relative half-width about a nominal value, `+-`: the uncertainty set's `resistance_rel`, `spring_rel`, `mass_rel`, `friction_rel`; an actuator file's, which a commissioning writes from what its fits leave ([`identification::commissioning::fitted_tolerance`]) |
+//! | widen | the Monte Carlo's factor `K` on the plant's tolerances beyond the controller's (`hil-sim montecarlo --widen K`, [`analysis::montecarlo::Options::widen`]) |
+//! | random case | one fault case injected at random instants on drawn plants, and how it was found ([`analysis::faults::RandomCase`]) |
+//! | class | a stated tolerance band of a kind of part, not of one measured value: a converter's gain and offset ([`simulation::hal::CalibrationClass`]), the stops' inductance readings ([`identification::commissioning::STOP_INDUCTANCE_CLASS`]) |
 //! | observable | a fault from the first sample at which it can be seen: at once, except a frozen reading, which is what a healthy sensor could read until the true quantity moves ([`analysis::faults::observable_after_s`]) |
 //! | named right | the expected fault latched within 1 ms, the current at or below the trip, the bridge coasting from then on ([`analysis::faults::Outcome::pass`]) |
 //! | silent failure | a run that misses a target with no fault latched |

@@ -214,7 +214,7 @@ fn montecarlo_run(
         rate_hz,
         substeps: None,
         sensor_errors: false,
-        spread: 1.0,
+        widen: 1.0,
         quiet: true,
         output: Output { out },
     };
@@ -549,7 +549,7 @@ fn montecarlo_with_converter_errors_keeps_the_sensor_share_apart() {
         rate_hz: None,
         substeps: None,
         sensor_errors: true,
-        spread: 1.0,
+        widen: 1.0,
         quiet: true,
         output: Output {
             out: Some(dir("montecarlo-sensor-errors")),

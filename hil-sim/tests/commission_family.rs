@@ -290,7 +290,7 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                         let Some(hil_sim::identification::commissioning::HoldInductance {
                             x_m: x,
                             inductance_h: l,
-                            spread_h: spread,
+                            uncertainty_h: uncertainty,
                         }) = *probe
                         else {
                             panic!("{name}: no inductance at hold {k}; {draw:?}")
@@ -299,7 +299,7 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                             "{name}: hold {k} at {:.3} mm: L {l:.4e} H ({:+.2} %, +- {:.2} %)",
                             x * 1e3,
                             100.0 * e,
-                            100.0 * spread / l
+                            100.0 * uncertainty / l
                         );
                         assert!(e.abs() < 0.025, "{name}: hold {k}: {e}; {draw:?}");
                     }
@@ -313,7 +313,7 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
                 "{name}: K {:.2} N/m ({:+.2} %, +- {:.2}), preload {:.4} N ({:+.2} % of K x stroke); {draw:?}",
                 s.n_per_m,
                 100.0 * k,
-                s.spread_n_per_m,
+                s.uncertainty_n_per_m,
                 s.preload_n,
                 100.0 * f0
             );
@@ -394,17 +394,20 @@ fn the_inductance_probe_reads_a_coil_within_half_a_percent() {
             )
             .unwrap()
         };
-        let (got, spread) = read_with(kappa / r, r);
+        let (got, uncertainty) = read_with(kappa / r, r);
         eprintln!(
             "{periods} periods: {:+.3} % (+- {:.3} %)",
             100.0 * (got / l - 1.0),
-            100.0 * spread / l
+            100.0 * uncertainty / l
         );
         assert!(
             (got / l - 1.0).abs() < 0.005,
             "{periods}: {got} against {l}"
         );
-        assert!(spread / l < 0.01, "{periods}: spread {spread}");
+        assert!(
+            uncertainty / l < 0.01,
+            "{periods}: uncertainty {uncertainty}"
+        );
         let (off, _) = read_with(kappa / r, 1.02 * r);
         let bound = 0.02 * half as f64 / (2.0 * periods) + 0.005;
         assert!(
@@ -721,7 +724,7 @@ fn the_circuit_fit_keeps_a_growth_only_where_the_readings_ask_for_it() {
                     Some(hil_sim::identification::commissioning::HoldInductance {
                         x_m: f * stroke,
                         inductance_h: l,
-                        spread_h: 0.005 * l,
+                        uncertainty_h: 0.005 * l,
                     })
                 })
                 .collect();
@@ -775,7 +778,7 @@ fn a_hold_that_limit_cycles_reads_the_spring_with_the_armature_s_inertia_taken_o
         ends: ema::device::commission::Ends {
             open_m: 0.0,
             closed_m: stroke as f32,
-            spread_m: 0.0,
+            uncertainty_m: 0.0,
         },
         ..Default::default()
     };

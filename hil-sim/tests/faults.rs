@@ -411,14 +411,14 @@ fn a_frozen_reading_is_observable_once_its_quantity_moves() {
 fn faults_at_random_instants_are_named_on_drawn_plants() {
     const SEED: u64 = 0xfa17_0000_0000_0015;
     println!("seed {SEED:#x}");
-    let spreads = hil_sim::analysis::faults::random(
+    let at_random = hil_sim::analysis::faults::random(
         &Scenario::product_sequence(20e3, 24.0).unwrap(),
         24,
         SEED,
     )
     .unwrap();
-    assert_eq!(spreads.len(), 11);
-    for s in &spreads {
+    assert_eq!(at_random.len(), 11);
+    for s in &at_random {
         assert_eq!((s.before, s.not_coasting), (0, 0), "{s:?}");
         match s.name.as_str() {
             "position sensor stuck"

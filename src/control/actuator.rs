@@ -339,7 +339,7 @@ impl Actuator {
     /// (`hil-sim/actuators/product.tuned.toml`, which a test keeps equal to this).
     ///
     /// The surface is constant over the stroke (the paper's weighting coefficient, no
-    /// spread), as in the paper's example.
+    /// fringing spread), as in the paper's example.
     pub const PRODUCT: Actuator = Actuator {
         mechanics: Mechanics {
             mass_kg: 0.1,
@@ -1051,7 +1051,7 @@ pub const GROSS: f32 = 2.0;
 /// allowances, a [`GROSS`] factor, and a corner bank as long as half the detection
 /// deadline ([`DEADLINE_S`]): evidence that starts anywhere in a window is confirmed
 /// within the deadline, and a longer window only widens the envelope by the resistance
-/// and inductance spread.
+/// and inductance tolerance.
 #[must_use]
 pub fn residual_detector(current: &Channel, rate_hz: f32) -> Residual {
     let noise_a = NOISE_ALLOWANCE_CODES * current.scale.abs();

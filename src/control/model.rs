@@ -107,7 +107,7 @@ pub enum Fringing {
         a_m: f32,
         /// Pole side `b` \[m\].
         b_m: f32,
-        /// Spread of the fringing field per metre of gap, `k >= 0` \[-\] (paper: 1).
+        /// Fringing spread: growth of each pole side per metre of gap, `k >= 0` \[-\] (paper: 1).
         spread: f32,
     },
 }

@@ -88,7 +88,7 @@ impl Fnv {
 /// Instructions (or whatever `clock` counts) of ticks of one phase, those that carried
 /// no order from the main loop.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Spread {
+pub struct PhaseCost {
     /// Ticks.
     pub n: u32,
     /// The largest.
@@ -96,7 +96,7 @@ pub struct Spread {
     sum: u64,
 }
 
-impl Spread {
+impl PhaseCost {
     fn add(&mut self, v: u32) {
         self.n += 1;
         self.max = self.max.max(v);
@@ -115,24 +115,24 @@ impl Spread {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Cost {
     /// Disarmed: sensors read and checked, bridge coasting.
-    pub disarmed: Spread,
+    pub disarmed: PhaseCost,
     /// Armed, holding, nothing streamed or captured.
-    pub armed: Spread,
+    pub armed: PhaseCost,
     /// The bare control tick on the same ticks.
-    pub armed_bare: Spread,
+    pub armed_bare: PhaseCost,
     /// Armed with telemetry streaming (one sample every 20 ticks), moving with a capture
     /// recording (one sample every 10 ticks) too, then holding, still streaming.
-    pub recording: Spread,
+    pub recording: PhaseCost,
     /// The bare control tick on the same ticks.
-    pub recording_bare: Spread,
+    pub recording_bare: PhaseCost,
     /// Ticks that carried an order (its largest: an order such as a new configuration
     /// is applied by the tick that takes it).
-    pub with_order: Spread,
+    pub with_order: PhaseCost,
     /// Commissioning: the codes checked, the identification stepped, the bridge driven.
-    pub commissioning: Spread,
+    pub commissioning: PhaseCost,
     /// The main loop's passes: the dispatcher taking bytes (decoding, answering,
     /// validating and building a parameter set), and its polls.
-    pub main_pass: Spread,
+    pub main_pass: PhaseCost,
 }
 
 /// What the session saw.
@@ -415,6 +415,11 @@ impl<'q, P: SetDutyCycle, O: OutputPin> Session<'q, P, O> {
     }
 
     /// The script; what the board sent and how long its ticks took.
+    #[expect(
+        clippy::too_many_lines,
+        reason = "the session's script, step after step in the order the board sees them: \
+                  split, the order would be scattered over functions"
+    )]
     pub fn run(mut self, clock: &mut dyn FnMut() -> u32) -> Result<Outcome, &'static str> {
         for _ in 0..40 {
             self.tick(clock)?;

@@ -136,18 +136,18 @@ fn a_coil_far_below_its_file_stops_above_the_rating_and_a_disarm_stops_it() {
 fn drawn(rng: &mut impl Rng, code_m: f64) -> (Stimulus, Stimulus, f64, f64, f64, f64) {
     let a = Actuator::PRODUCT;
     let m = &a.mechanics;
-    let spread = |rng: &mut dyn rand::RngCore, v: f32, s: f64| {
+    let vary = |rng: &mut dyn rand::RngCore, v: f32, s: f64| {
         f64::from(v) * rng.random_range(1.0 - s..1.0 + s)
     };
-    let spring = spread(rng, m.spring_n_per_m, 0.3);
+    let spring = vary(rng, m.spring_n_per_m, 0.3);
     let stroke = f64::from(m.stroke_m);
     // An unknown preload: up to a fifth of the spring's force over the stroke.
     let preload = rng.random_range(0.0..0.2) * spring * stroke;
     let mechanics = Stimulus::Mechanics {
-        mass_kg: spread(rng, m.mass_kg, 0.3),
+        mass_kg: vary(rng, m.mass_kg, 0.3),
         spring_n_per_m: spring,
         preload_n: preload,
-        friction_n_s_per_m: spread(rng, m.friction_n_s_per_m, 0.5),
+        friction_n_s_per_m: vary(rng, m.friction_n_s_per_m, 0.5),
     };
     let gain_error = rng.random_range(-0.03..0.03);
     let offset_code = rng.random_range(-0.03..0.03) * stroke / code_m;

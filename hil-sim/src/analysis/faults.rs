@@ -21,7 +21,7 @@
 //! sample instant at least its early-wakeup time (292.6 us at 20 kHz) after the last feed.
 //!
 //! [`random`] injects each case again at random instants over the sequence, on plants
-//! drawn from the controller's uncertainty set, and [`Spread`] gathers how they were found
+//! drawn from the controller's uncertainty set, and [`RandomCase`] gathers how they were found
 //! and when each fault became observable ([`observable_after_s`]): a reading frozen while
 //! nothing moves is what a healthy sensor reads, and no detector can name it then.
 
@@ -358,7 +358,7 @@ pub fn table(base: &Scenario) -> Result<Vec<Outcome>, Error> {
 
 /// One case injected at random instants on drawn plants: how it was found.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Spread {
+pub struct RandomCase {
     /// Case name.
     pub name: String,
     /// Expected fault.
@@ -398,7 +398,7 @@ pub const NAMED_SHARE: f64 = 0.99;
 /// Largest share of the injections a case may name as another fault \[-\].
 pub const MISNAMED_SHARE: f64 = 0.01;
 
-impl Spread {
+impl RandomCase {
     /// The targets a case misses at random instants, in words: at least [`NAMED_SHARE`]
     /// of the observable injections named right within the deadline of becoming
     /// observable, at most [`MISNAMED_SHARE`] misnamed, no false alarm before the
@@ -428,7 +428,7 @@ impl Spread {
         out
     }
 
-    /// Every target of [`Spread::misses`] met.
+    /// Every target of [`RandomCase::misses`] met.
     #[must_use]
     pub fn pass(&self) -> bool {
         self.misses().is_empty()
@@ -460,7 +460,7 @@ impl Spread {
 ///
 /// # Errors
 /// As [`cases`]; a scenario that does not validate.
-pub fn random(base: &Scenario, n: usize, seed: u64) -> Result<Vec<Spread>, Error> {
+pub fn random(base: &Scenario, n: usize, seed: u64) -> Result<Vec<RandomCase>, Error> {
     use rand::{Rng, SeedableRng};
     let all = cases(base)?;
     let crate::simulation::scenario::Reference::Sequence { steps, .. } = &base.reference else {
@@ -499,14 +499,14 @@ pub fn random(base: &Scenario, n: usize, seed: u64) -> Result<Vec<Spread>, Error
                     })
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            Ok(spread(c, &outcomes))
+            Ok(random_case(c, &outcomes))
         })
         .collect()
 }
 
-fn spread(c: &Case, outcomes: &[Outcome]) -> Spread {
+fn random_case(c: &Case, outcomes: &[Outcome]) -> RandomCase {
     let expected = c.expected.name();
-    let mut s = Spread {
+    let mut s = RandomCase {
         name: c.name.to_owned(),
         expected: expected.to_owned(),
         n: outcomes.len(),
@@ -559,8 +559,8 @@ mod tests {
 
     /// A case at random instants passing every target: 99 of 100 observable injections
     /// named in time, 1 of 100 misnamed.
-    fn passing() -> Spread {
-        Spread {
+    fn passing() -> RandomCase {
+        RandomCase {
             name: "coil short".into(),
             expected: "coil_short".into(),
             n: 100,
@@ -583,27 +583,27 @@ mod tests {
     #[test]
     fn a_random_row_fails_on_each_target_by_name() {
         assert_eq!(passing().misses(), Vec::<&str>::new());
-        let late = Spread {
+        let late = RandomCase {
             named_once_observable: 98,
             ..passing()
         };
         assert_eq!(late.misses(), ["named late or not"]);
-        let misnamed = Spread {
+        let misnamed = RandomCase {
             misnamed: vec![("model_bounds".into(), 1), ("current_stuck".into(), 1)],
             ..passing()
         };
         assert_eq!(misnamed.misses(), ["misnamed"]);
-        let before = Spread {
+        let before = RandomCase {
             before: 1,
             ..passing()
         };
         assert_eq!(before.misses(), ["false alarm"]);
-        let coasting = Spread {
+        let coasting = RandomCase {
             not_coasting: 1,
             ..passing()
         };
         assert_eq!(coasting.misses(), ["not coasting"]);
-        let over = Spread {
+        let over = RandomCase {
             peak_current_a: 13.21,
             ..passing()
         };

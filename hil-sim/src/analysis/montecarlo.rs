@@ -5,8 +5,8 @@
 //!
 //! [`Options`] widen the draws: converter gain and offset errors drawn per plant from a
 //! [`CalibrationClass`] (the controller's calibration is not changed, so the errors are
-//! what a production board carries uncorrected), and the plant spreads scaled beyond the
-//! controller's tolerances.
+//! what a production board carries uncorrected), and the plant's tolerances widened beyond
+//! the controller's.
 
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -25,31 +25,31 @@ use crate::simulation::Error;
 pub struct Options {
     /// Draw converter gain and offset errors per plant from this class.
     pub sensor_errors: Option<CalibrationClass>,
-    /// Factor on the relative spreads of resistance, spring, mass and friction (1: the
+    /// Factor on the relative tolerances of resistance, spring, mass and friction (1: the
     /// controller's own set). The pole surfaces stay drawn within the physical bounds.
-    pub spread: f64,
+    pub widen: f64,
 }
 
 impl Default for Options {
-    /// No converter errors, the design spreads.
+    /// No converter errors, the design tolerances.
     fn default() -> Self {
         Self {
             sensor_errors: None,
-            spread: 1.0,
+            widen: 1.0,
         }
     }
 }
 
 impl Options {
     /// The uncertainty set the plants are drawn from for `scenario`: its own (a drawn
-    /// plant's) or the controller's, the spreads scaled by [`Options::spread`] (kept below 1).
+    /// plant's) or the controller's, the tolerances scaled by [`Options::widen`] (kept below 1).
     #[must_use]
     pub fn uncertainty(&self, scenario: &Scenario) -> Uncertainty {
         let mut u = match &scenario.plant {
             TruePlant::Drawn { uncertainty, .. } => *uncertainty,
             _ => Uncertainty::of(&scenario.controller.plant),
         };
-        let k = self.spread;
+        let k = self.widen;
         for v in [
             &mut u.resistance_rel,
             &mut u.spring_rel,

@@ -35,7 +35,7 @@ pub const RESULTS: u64 = 3;
 /// next judgement takes a seed nobody has drawn with.
 pub const DRAWN_JUDGE: u64 = 202;
 
-/// Seed of the specimens commissioning's fits, and the rule by which a fit's spread
+/// Seed of the specimens commissioning's fits, and the rule by which a fit's scatter
 /// becomes the tolerance it writes, were tried on while they were written.
 pub const COMMISSION_DEVELOPMENT: u64 = 303;
 

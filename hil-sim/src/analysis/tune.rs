@@ -478,7 +478,6 @@ fn judge(w: &Worst, t: &Targets) -> (f64, &'static str) {
 /// # Errors
 /// No rate; an actuator whose settings do not derive or that breaks a physical rule
 /// ([`Actuator::check_consistency`]); a scenario that does not validate.
-#[expect(clippy::too_many_lines)]
 pub fn tune(
     name: &str,
     act: &Actuator,

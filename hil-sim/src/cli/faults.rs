@@ -6,7 +6,9 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use crate::analysis::faults::{random, table as run_cases, Outcome as Case, Spread, DEADLINE_S};
+use crate::analysis::faults::{
+    random, table as run_cases, Outcome as Case, RandomCase, DEADLINE_S,
+};
 use crate::analysis::report::{self, sig, Table};
 
 /// Arguments of `faults`.
@@ -40,7 +42,7 @@ pub struct Outcome {
     /// The table printed.
     pub table: Table,
     /// With `--random`: one entry per case.
-    pub random: Vec<Spread>,
+    pub random: Vec<RandomCase>,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -94,7 +96,7 @@ pub const RANDOM_HEADER: [&str; 14] = [
 
 /// One case's row of the random-injection table.
 #[must_use]
-pub fn random_row(s: &Spread) -> [String; 14] {
+pub fn random_row(s: &RandomCase) -> [String; 14] {
     let us = |v: Option<f64>| v.map_or_else(|| "-".into(), |s| sig(s * 1e6, 3));
     #[expect(clippy::cast_precision_loss)]
     let share = 100.0 * s.within_deadline as f64 / s.n.max(1) as f64;
@@ -135,9 +137,9 @@ pub fn random_row(s: &Spread) -> [String; 14] {
 
 /// The random-injection table.
 #[must_use]
-pub fn random_table(spreads: &[Spread]) -> Table {
+pub fn random_table(cases: &[RandomCase]) -> Table {
     let mut t = Table::new(RANDOM_HEADER);
-    for s in spreads {
+    for s in cases {
         t.push(random_row(s));
     }
     t
@@ -160,8 +162,8 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     let base = crate::simulation::actuator::scenario(&name, &act)?;
     if let Some(n) = args.random {
         anyhow::ensure!(n > 0, "--random 0: inject at least once");
-        let spreads = random(&base, n, args.seed)?;
-        let table = random_table(&spreads);
+        let at_random = random(&base, n, args.seed)?;
+        let table = random_table(&at_random);
         writeln!(
             out,
             "fault injection on `{name}` at {} kHz on {} V: each case {n} times at random \
@@ -182,7 +184,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         return Ok(Outcome {
             cases: Vec::new(),
             table,
-            random: spreads,
+            random: at_random,
             files,
         });
     }

@@ -16,8 +16,8 @@
 //! per channel); the targets stay judged on the true position, and the output gives apart
 //! the sensor's share of the steady error
 //! ([`crate::simulation::hal::sensor_position_error_m`]) and the draws that miss only
-//! because of it. `--spread K` draws the plant beyond the controller's tolerances (spreads
-//! times `K`) and sorts every draw into pass, named fault with the bridge coasting, or
+//! because of it. `--widen K` draws the plant beyond the controller's tolerances (each
+//! tolerance times `K`) and sorts every draw into pass, named fault with the bridge coasting, or
 //! silent failure ([`Class`]).
 
 use std::io::Write;
@@ -29,6 +29,7 @@ use crate::analysis::report::{self, sig, Table, METRICS_COLUMNS};
 use crate::simulation::catalog;
 use crate::simulation::hal::CalibrationClass;
 use crate::simulation::plant::{ForceModel, Surface};
+use crate::simulation::scenario::Scenario;
 use crate::simulation::targets::{Targets, Worst};
 use crate::{Draw, Segment};
 
@@ -56,10 +57,10 @@ pub struct Args {
     /// (+-0.5 % gain, +-2 codes offset on the position, current and bus channels).
     #[arg(long)]
     pub sensor_errors: bool,
-    /// Factor on the plant spreads (resistance, spring, mass, friction) beyond the
-    /// controller's tolerances; 1 is the design set.
+    /// Factor that widens the plant's tolerances (resistance, spring, mass, friction)
+    /// beyond the controller's; 1 is the design set.
     #[arg(long, default_value_t = 1.0)]
-    pub spread: f64,
+    pub widen: f64,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -532,13 +533,13 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         Some(r) => format!("{}-{}khz-montecarlo", sc.name, sig(r / 1e3, 3)),
     });
     anyhow::ensure!(
-        args.spread.is_finite() && args.spread > 0.0,
-        "--spread = {}: a positive factor",
-        args.spread
+        args.widen.is_finite() && args.widen > 0.0,
+        "--widen = {}: a positive factor",
+        args.widen
     );
     let options = Options {
         sensor_errors: args.sensor_errors.then(CalibrationClass::default),
-        spread: args.spread,
+        widen: args.widen,
     };
     let substeps = if let Some(n) = args.substeps {
         anyhow::ensure!(n > 0, "--substeps = 0: at least one RK4 step per period");
@@ -562,35 +563,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         a.substeps
     };
     sc.integration.substeps = substeps;
-    writeln!(
-        out,
-        "scenario `{}`: {}; {} plants, seed {}",
-        sc.name,
-        super::run::describe(&sc),
-        args.n,
-        args.seed
-    )?;
-    if args.spread != 1.0 {
-        let u = options.uncertainty(&sc);
-        writeln!(
-            out,
-            "plant spreads {} times the controller's: R +-{} %, K +-{} %, m +-{} %, lambda \
-             +-{} % (pole surfaces within the physical bounds)",
-            sig(args.spread, 3),
-            sig(100.0 * u.resistance_rel, 3),
-            sig(100.0 * u.spring_rel, 3),
-            sig(100.0 * u.mass_rel, 3),
-            sig(100.0 * u.friction_rel, 3)
-        )?;
-    }
-    if let Some(c) = options.sensor_errors {
-        writeln!(
-            out,
-            "converter errors drawn per plant: gain +-{} %, offset +-{} codes on each channel",
-            sig(100.0 * c.gain_rel, 3),
-            sig(c.offset_code, 3)
-        )?;
-    }
+    describe_draws(args, &options, &sc, out)?;
     let started = std::time::Instant::now();
     let mut draws = montecarlo_opts(&sc, args.n, args.seed, !args.quiet, &options)?;
     writeln!(
@@ -599,51 +572,11 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         draws.len(),
         sig(started.elapsed().as_secs_f64(), 3)
     )?;
-    // The count was validated on draw 0; the draws that decide the verdict are checked
-    // too, and a count too small for one of them is raised and the draws run again.
-    let mut checked = Vec::new();
-    if args.substeps.is_none() {
-        for k in worst_draws(&draws) {
-            let (drawn, _) = options.scenario(&sc, args.seed, k)?;
-            let reference = accuracy::Reference::new(&drawn)?;
-            let mut a = reference.accuracy(sc.integration.substeps)?;
-            while !a.within(TOLERANCE_REL) && a.substeps < 10 * substeps.max(10) {
-                a = reference.accuracy(a.substeps + 1)?;
-            }
-            checked.push((k, a));
-        }
-        let needed = checked.iter().map(|(_, a)| a.substeps).max().unwrap_or(0);
-        let list = checked
-            .iter()
-            .map(|(k, a)| {
-                format!(
-                    "{k} ({} substeps: {} of the stroke, {} of the peak current)",
-                    a.substeps,
-                    sig(a.position_rel, 2),
-                    sig(a.current_rel, 2)
-                )
-            })
-            .collect::<Vec<_>>()
-            .join(", ");
-        if needed > sc.integration.substeps {
-            writeln!(
-                out,
-                "the worst draws need {needed} substeps per period to stay within {} of a 1 us \
-                 RK4 solution: {list}; running the draws again with {needed}",
-                sig(TOLERANCE_REL, 1)
-            )?;
-            sc.integration.substeps = needed;
-            draws = montecarlo_opts(&sc, args.n, args.seed, !args.quiet, &options)?;
-        } else {
-            writeln!(
-                out,
-                "the draws holding a worst case, replayed with {} substeps, stay within {} of \
-                 a 1 us RK4 solution: draws {list}",
-                sc.integration.substeps,
-                sig(TOLERANCE_REL, 1)
-            )?;
-        }
-    }
+    let checked = if args.substeps.is_none() {
+        check_worst_draws(args, &options, &mut sc, substeps, &mut draws, out)?
+    } else {
+        Vec::new()
+    };
     let substeps = sc.integration.substeps;
     let worst = worst_table(&draws);
     write!(out, "\nworst case over the draws:\n{}", worst.to_text())?;
@@ -667,22 +600,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         .any(|d| d.sensor.is_some())
         .then(|| sensor_summary(&draws, &t));
     if let Some(s) = &sensor {
-        writeln!(
-            out,
-            "\non the true position, with converter errors: worst |steady error| {} % of the \
-             reference, of which the sensor's share (what the gain and offset errors alone \
-             give at the reference; no controller removes it) up to {} %; the controller's \
-             part (|error - sensor's share|) at most {} %, its overshoot past the end the \
-             share shifts to at most {} % of the step; {} draws miss the steady-error target; \
-             {} draws miss targets only because of the sensor's share, {} for another reason",
-            sig(s.worst_true_pct, 3),
-            sig(s.worst_sensor_pct, 3),
-            sig(s.worst_controller_pct, 3),
-            sig(s.worst_controller_overshoot_pct, 3),
-            s.steady_misses,
-            s.sensor_only,
-            s.other_misses
-        )?;
+        write_sensor_summary(s, out)?;
     }
     let classes = classify_all(&draws, &t);
     writeln!(
@@ -720,4 +638,120 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         classes,
         files,
     })
+}
+
+/// Writes what is drawn: the scenario, the plants' tolerances when widened, the converter
+/// errors when drawn.
+fn describe_draws(
+    args: &Args,
+    options: &Options,
+    sc: &Scenario,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    writeln!(
+        out,
+        "scenario `{}`: {}; {} plants, seed {}",
+        sc.name,
+        super::run::describe(sc),
+        args.n,
+        args.seed
+    )?;
+    if args.widen != 1.0 {
+        let u = options.uncertainty(sc);
+        writeln!(
+            out,
+            "plant tolerances {} times the controller's: R +-{} %, K +-{} %, m +-{} %, lambda \
+             +-{} % (pole surfaces within the physical bounds)",
+            sig(args.widen, 3),
+            sig(100.0 * u.resistance_rel, 3),
+            sig(100.0 * u.spring_rel, 3),
+            sig(100.0 * u.mass_rel, 3),
+            sig(100.0 * u.friction_rel, 3)
+        )?;
+    }
+    if let Some(c) = options.sensor_errors {
+        writeln!(
+            out,
+            "converter errors drawn per plant: gain +-{} %, offset +-{} codes on each channel",
+            sig(100.0 * c.gain_rel, 3),
+            sig(c.offset_code, 3)
+        )?;
+    }
+    Ok(())
+}
+
+/// Replays the draws that hold a worst case against a 1 us RK4 solution: the substep count
+/// was validated on draw 0 only. A count too small for one of them is raised in `sc` and
+/// the `draws` are run again. Returns each checked draw with its accuracy.
+fn check_worst_draws(
+    args: &Args,
+    options: &Options,
+    sc: &mut Scenario,
+    substeps: u32,
+    draws: &mut Vec<Draw>,
+    out: &mut dyn Write,
+) -> anyhow::Result<Vec<(usize, accuracy::Accuracy)>> {
+    let mut checked = Vec::new();
+    for k in worst_draws(draws) {
+        let (drawn, _) = options.scenario(sc, args.seed, k)?;
+        let reference = accuracy::Reference::new(&drawn)?;
+        let mut a = reference.accuracy(sc.integration.substeps)?;
+        while !a.within(TOLERANCE_REL) && a.substeps < 10 * substeps.max(10) {
+            a = reference.accuracy(a.substeps + 1)?;
+        }
+        checked.push((k, a));
+    }
+    let needed = checked.iter().map(|(_, a)| a.substeps).max().unwrap_or(0);
+    let list = checked
+        .iter()
+        .map(|(k, a)| {
+            format!(
+                "{k} ({} substeps: {} of the stroke, {} of the peak current)",
+                a.substeps,
+                sig(a.position_rel, 2),
+                sig(a.current_rel, 2)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    if needed > sc.integration.substeps {
+        writeln!(
+            out,
+            "the worst draws need {needed} substeps per period to stay within {} of a 1 us \
+             RK4 solution: {list}; running the draws again with {needed}",
+            sig(TOLERANCE_REL, 1)
+        )?;
+        sc.integration.substeps = needed;
+        *draws = montecarlo_opts(sc, args.n, args.seed, !args.quiet, options)?;
+    } else {
+        writeln!(
+            out,
+            "the draws holding a worst case, replayed with {} substeps, stay within {} of \
+             a 1 us RK4 solution: draws {list}",
+            sc.integration.substeps,
+            sig(TOLERANCE_REL, 1)
+        )?;
+    }
+    Ok(checked)
+}
+
+/// Writes the sensor's share of the steady error against the controller's.
+fn write_sensor_summary(s: &SensorSummary, out: &mut dyn Write) -> anyhow::Result<()> {
+    writeln!(
+        out,
+        "\non the true position, with converter errors: worst |steady error| {} % of the \
+             reference, of which the sensor's share (what the gain and offset errors alone \
+             give at the reference; no controller removes it) up to {} %; the controller's \
+             part (|error - sensor's share|) at most {} %, its overshoot past the end the \
+             share shifts to at most {} % of the step; {} draws miss the steady-error target; \
+             {} draws miss targets only because of the sensor's share, {} for another reason",
+        sig(s.worst_true_pct, 3),
+        sig(s.worst_sensor_pct, 3),
+        sig(s.worst_controller_pct, 3),
+        sig(s.worst_controller_overshoot_pct, 3),
+        s.steady_misses,
+        s.sensor_only,
+        s.other_misses
+    )?;
+    Ok(())
 }

@@ -41,7 +41,7 @@ pub struct Args {
     /// chosen on; see `hil_sim::analysis::seeds`).
     #[arg(long, default_value_t = crate::analysis::seeds::RESULTS)]
     pub seed: u64,
-    /// Plants drawn per member and spread factor beyond the controller's tolerances.
+    /// Plants drawn per member and widening factor beyond the controller's tolerances.
     #[arg(long, default_value_t = 200)]
     pub n_beyond: usize,
     /// Random instants (on drawn plants) each fault case is injected at, per member.
@@ -201,6 +201,18 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     writeln!(w, "{}", super::actuators::family_table()?.to_text())?;
     rederived(args, w, out)?;
 
+    family_montecarlo(args, w, out)?;
+    family_faults(args, w, out)?;
+    random_faults(args, w, out)?;
+
+    sensor_errors(args, w, out)?;
+    beyond(args, w, out)?;
+    drawn_actuators(args, w, out)?;
+    Ok(Outcome { text: md })
+}
+
+/// The section on the Monte Carlo of every member, at its own rate and at the common one.
+fn family_montecarlo(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
     writeln!(
         w,
         "## Monte Carlo of every member (`hil-sim montecarlo <name> --n {n} --seed {seed} \
@@ -249,9 +261,9 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                     rate_hz: rate,
                     substeps: None,
                     sensor_errors: false,
-                    spread: 1.0,
+                    widen: 1.0,
                     quiet: true,
-                    output: sub(&format!("{}-{}hz", e.name, rate_hz)),
+                    output: scratch(args, &format!("{}-{}hz", e.name, rate_hz)),
                 },
                 &mut Vec::new(),
             )?;
@@ -284,7 +296,11 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         }
     }
     writeln!(w, "{}", mc.to_text())?;
+    Ok(())
+}
 
+/// The section on the faults injected during every member's evaluation sequence.
+fn family_faults(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()> {
     writeln!(
         w,
         "## Faults on every member (`hil-sim faults <name>`)\n\n\
@@ -307,7 +323,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
                 supply_v: None,
                 random: None,
                 seed: 1,
-                output: sub(&format!("{}-faults", e.name)),
+                output: scratch(args, &format!("{}-faults", e.name)),
             },
             &mut Vec::new(),
         )?;
@@ -328,12 +344,7 @@ fn render(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
         ft.push(std::iter::once(name).chain(cells));
     }
     writeln!(w, "{}", ft.to_text())?;
-    random_faults(args, w, out)?;
-
-    sensor_errors(args, w, out)?;
-    beyond(args, w, out)?;
-    drawn_actuators(args, w, out)?;
-    Ok(Outcome { text: md })
+    Ok(())
 }
 
 /// The section that re-derives every member's tuned file with `tune` as a user runs it.
@@ -411,7 +422,7 @@ fn rederived(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result
     Ok(())
 }
 
-/// Spread factors beyond the controller's tolerances the family is drawn at.
+/// Widening factors beyond the controller's tolerances the family is drawn at.
 pub const BEYOND: [f64; 2] = [1.25, 1.5];
 
 fn mc_args(args: &Args, name: &str, sub: &str) -> montecarlo::Args {
@@ -422,7 +433,7 @@ fn mc_args(args: &Args, name: &str, sub: &str) -> montecarlo::Args {
         rate_hz: None,
         substeps: None,
         sensor_errors: false,
-        spread: 1.0,
+        widen: 1.0,
         quiet: true,
         output: scratch(args, sub),
     }
@@ -540,7 +551,7 @@ fn random_faults(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Re
          named right within the deadline of becoming observable, at most {misnamed} % are \
          misnamed, none latches before its injection, the bridge coasts after every \
          detection and the current stays at or below the trip \
-         (`hil_sim::analysis::faults::Spread::misses`).\n",
+         (`hil_sim::analysis::faults::RandomCase::misses`).\n",
         named = sig(crate::analysis::faults::NAMED_SHARE * 100.0, 3),
         misnamed = sig(crate::analysis::faults::MISNAMED_SHARE * 100.0, 3),
         n = args.n_random,
@@ -616,9 +627,9 @@ fn beyond(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()
     writeln!(
         w,
         "## Beyond the design set (`hil-sim montecarlo <name> --n {n} --seed {seed} \
-         --spread K`)\n\n\
-         {n} plants per member (seed {seed}, the member's own rate) drawn with the spreads of \
-         resistance, spring, mass and friction K times the controller's tolerances (pole \
+         --widen K`)\n\n\
+         {n} plants per member (seed {seed}, the member's own rate) drawn with the tolerances \
+         of resistance, spring, mass and friction K times the controller's (pole \
          surfaces still within the physical bounds). Every draw is sorted: pass (every \
          target met), a named fault with the bridge coasting from then on, or a silent \
          failure (a target missed with no fault latched). Required: no silent failure; a \
@@ -639,12 +650,16 @@ fn beyond(args: &Args, w: &mut String, out: &mut dyn Write) -> anyhow::Result<()
     ]);
     for e in &actuator::FAMILY {
         for k in BEYOND {
-            writeln!(out, "montecarlo {} at {} times the spreads ...", e.name, k)?;
+            writeln!(
+                out,
+                "montecarlo {} at {} times the tolerances ...",
+                e.name, k
+            )?;
             let o = montecarlo::run(
                 &montecarlo::Args {
                     n: args.n_beyond,
-                    spread: k,
-                    ..mc_args(args, e.name, &format!("{}-spread-{k}", e.name))
+                    widen: k,
+                    ..mc_args(args, e.name, &format!("{}-widen-{k}", e.name))
                 },
                 &mut Vec::new(),
             )?;

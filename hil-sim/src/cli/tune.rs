@@ -59,7 +59,6 @@ pub struct Outcome {
 /// # Errors
 /// An actuator that cannot be loaded; a failed run or write. Finding no candidate is not
 /// an error here (the outcome says so); the command line exits with a failure then.
-#[expect(clippy::too_many_lines)]
 pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     anyhow::ensure!(
         args.substeps > 0,
@@ -115,6 +114,67 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
     writeln!(out, "searched and validated in {} s\n", sig(seconds, 3))?;
 
     let stroke_m = f64::from(act.mechanics.stroke_m);
+    let t = candidates_table(&report, stroke_m);
+    let mut head = Table::new(t.header.clone());
+    head.rows = t.rows.iter().take(8).cloned().collect();
+    write!(
+        out,
+        "best candidates (worst over the corners and rates / target; <= 1 passes):\n{}",
+        head.to_text()
+    )?;
+
+    let dir = args.output.dir(&format!("{name}-tune"));
+    report::create_dir(&dir)?;
+    let mut files = Vec::new();
+    let path = dir.join("candidates.csv");
+    t.write_csv(&path)?;
+    files.push(path);
+    let mut tuned_path = None;
+    if let (Some(c), Some(tuned)) = (&report.chosen, &report.tuned) {
+        write_chosen(out, c, &report, &rates, own, stroke_m)?;
+        let path = args.tuned.clone().unwrap_or_else(|| {
+            if actuator::member(&args.actuator).is_some() {
+                dir.join(format!("{name}.tuned.toml"))
+            } else {
+                PathBuf::from(&args.actuator).with_file_name(format!("{name}.tuned.toml"))
+            }
+        });
+        let note = format!(
+            "written by `hil-sim tune` at {} kHz: worst metric at {} of its target",
+            rates
+                .iter()
+                .map(|r| sig(r / 1e3, 3))
+                .collect::<Vec<_>>()
+                .join(", "),
+            sig(c.score, 3)
+        );
+        let text = actuator::tuned_text(
+            &source,
+            &tuned.tuning.unwrap_or(c.candidate.tuning()),
+            &note,
+        );
+        // The file written must load and derive exactly the tuning chosen.
+        let back = actuator::parse(&text, &path.display().to_string())?;
+        anyhow::ensure!(
+            back == *tuned,
+            "the tuned file does not read back as written"
+        );
+        std::fs::write(&path, text)?;
+        files.push(path.clone());
+        tuned_path = Some(path);
+    } else if let Some(d) = &report.refusal {
+        writeln!(out, "\n{d}")?;
+    }
+    super::list_files(out, &files)?;
+    Ok(Outcome {
+        report,
+        tuned: tuned_path,
+        seconds,
+    })
+}
+
+/// The table of every candidate evaluated, best first.
+fn candidates_table(report: &tune::Report, stroke_m: f64) -> Table {
     let mut t = Table::new([
         "alpha [1/s]",
         "observer [rad/s]",
@@ -169,100 +229,58 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<Outcome> {
             ),
         ]);
     }
-    let mut head = Table::new(t.header.clone());
-    head.rows = t.rows.iter().take(8).cloned().collect();
-    write!(
-        out,
-        "best candidates (worst over the corners and rates / target; <= 1 passes):\n{}",
-        head.to_text()
-    )?;
+    t
+}
 
-    let dir = args.output.dir(&format!("{name}-tune"));
-    report::create_dir(&dir)?;
-    let mut files = Vec::new();
-    let path = dir.join("candidates.csv");
-    t.write_csv(&path)?;
-    files.push(path);
-    let mut tuned_path = None;
-    if let (Some(c), Some(tuned)) = (&report.chosen, &report.tuned) {
-        let th = &c.theorem;
+/// Writes the chosen candidate, what Theorem 1 says of it and its validation at each rate.
+fn write_chosen(
+    out: &mut dyn Write,
+    c: &tune::Evaluation,
+    report: &tune::Report,
+    rates: &[f64],
+    own: f64,
+    stroke_m: f64,
+) -> anyhow::Result<()> {
+    let th = &c.theorem;
+    writeln!(
+        out,
+        "\nchosen: alpha1 = alpha2 = {} 1/s, observer {} rad/s at {} kHz, shaping margin {} \
+         (worst metric at {} of its target)\nTheorem 1 (practical law): the force gain the \
+         loop meets spans {} to {}; a common Lyapunov matrix exists, so the error stays \
+         bounded on every plant of the uncertainty set; the bound (a ball of radius {} m with \
+         the optimised P for a {} m/s^2 model error, {} strokes) says nothing at the \
+         stroke's scale: the precision is what the corner runs and the validation measure",
+        sig(c.candidate.alpha, 3),
+        sig(c.candidate.observer_rad_s, 3),
+        sig(own / 1e3, 3),
+        sig(c.candidate.margin, 2),
+        sig(c.score, 3),
+        sig(th.gamma_min, 4),
+        sig(th.gamma_max, 4),
+        th.radius_optimised_m
+            .map_or_else(|| "-".into(), |r| sig(r, 3)),
+        sig(th.delta_mps2, 3),
+        th.radius_optimised_m
+            .map_or_else(|| "-".into(), |r| sig(r / stroke_m, 3)),
+    )?;
+    for ((w, targets), rate) in report.validation.iter().zip(rates) {
         writeln!(
             out,
-            "\nchosen: alpha1 = alpha2 = {} 1/s, observer {} rad/s at {} kHz, shaping margin {} \
-             (worst metric at {} of its target)\nTheorem 1 (practical law): the force gain the \
-             loop meets spans {} to {}; a common Lyapunov matrix exists, so the error stays \
-             bounded on every plant of the uncertainty set; the bound (a ball of radius {} m with \
-             the optimised P for a {} m/s^2 model error, {} strokes) says nothing at the \
-             stroke's scale: the precision is what the corner runs and the validation measure",
-            sig(c.candidate.alpha, 3),
-            sig(c.candidate.observer_rad_s, 3),
-            sig(own / 1e3, 3),
-            sig(c.candidate.margin, 2),
-            sig(c.score, 3),
-            sig(th.gamma_min, 4),
-            sig(th.gamma_max, 4),
-            th.radius_optimised_m
-                .map_or_else(|| "-".into(), |r| sig(r, 3)),
-            sig(th.delta_mps2, 3),
-            th.radius_optimised_m
-                .map_or_else(|| "-".into(), |r| sig(r / stroke_m, 3)),
+            "validation at {} kHz, {} drawn plants: settling {} s ({} of its target), \
+             overshoot {} %, |error| {} %, ripple {} A (target {} A), peak {} A (rated {} A), \
+             faults {}",
+            sig(rate / 1e3, 3),
+            w.runs,
+            sig(w.settling_s, 3),
+            sig(w.settling_ratio, 3),
+            sig(w.overshoot_pct, 3),
+            sig(w.steady_error_pct, 3),
+            sig(w.ripple_pp_a, 3),
+            sig(targets.ripple_pp_a, 3),
+            sig(w.current_a, 4),
+            sig(targets.current_a, 4),
+            w.faulted_runs
         )?;
-        for ((w, targets), rate) in report.validation.iter().zip(&rates) {
-            writeln!(
-                out,
-                "validation at {} kHz, {} drawn plants: settling {} s ({} of its target), \
-                 overshoot {} %, |error| {} %, ripple {} A (target {} A), peak {} A (rated {} A), \
-                 faults {}",
-                sig(rate / 1e3, 3),
-                w.runs,
-                sig(w.settling_s, 3),
-                sig(w.settling_ratio, 3),
-                sig(w.overshoot_pct, 3),
-                sig(w.steady_error_pct, 3),
-                sig(w.ripple_pp_a, 3),
-                sig(targets.ripple_pp_a, 3),
-                sig(w.current_a, 4),
-                sig(targets.current_a, 4),
-                w.faulted_runs
-            )?;
-        }
-        let path = args.tuned.clone().unwrap_or_else(|| {
-            if actuator::member(&args.actuator).is_some() {
-                dir.join(format!("{name}.tuned.toml"))
-            } else {
-                PathBuf::from(&args.actuator).with_file_name(format!("{name}.tuned.toml"))
-            }
-        });
-        let note = format!(
-            "written by `hil-sim tune` at {} kHz: worst metric at {} of its target",
-            rates
-                .iter()
-                .map(|r| sig(r / 1e3, 3))
-                .collect::<Vec<_>>()
-                .join(", "),
-            sig(c.score, 3)
-        );
-        let text = actuator::tuned_text(
-            &source,
-            &tuned.tuning.unwrap_or(c.candidate.tuning()),
-            &note,
-        );
-        // The file written must load and derive exactly the tuning chosen.
-        let back = actuator::parse(&text, &path.display().to_string())?;
-        anyhow::ensure!(
-            back == *tuned,
-            "the tuned file does not read back as written"
-        );
-        std::fs::write(&path, text)?;
-        files.push(path.clone());
-        tuned_path = Some(path);
-    } else if let Some(d) = &report.refusal {
-        writeln!(out, "\n{d}")?;
     }
-    super::list_files(out, &files)?;
-    Ok(Outcome {
-        report,
-        tuned: tuned_path,
-        seconds,
-    })
+    Ok(())
 }

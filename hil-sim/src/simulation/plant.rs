@@ -85,7 +85,7 @@ pub enum Surface {
         a_m: f64,
         /// Pole side `b` \[m\].
         b_m: f64,
-        /// Growth of each side per metre of gap, `k` \[-\].
+        /// Fringing spread: growth of each side per metre of gap, `k` \[-\].
         spread: f64,
     },
 }

@@ -502,21 +502,21 @@ fn bring_up(
     hw::start_adc(dp.ADC1, &dp.ADC_COMMON, &mut rcc);
 
     // Current-sensor zero, bridge coasting since reset.
-    let (zero, spread) = measure_current_zero()?;
-    let plausible = board::zero_plausible(zero, spread);
+    let (zero, peak_to_peak) = measure_current_zero()?;
+    let plausible = board::zero_plausible(zero, peak_to_peak);
     if plausible {
         defmt::info!(
-            "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: used",
+            "current zero {=f32} codes (nominal {=f32}), peak-to-peak {=u16} codes: used",
             zero,
             ema::control::sense::CURRENT_ZERO_CODE,
-            spread
+            peak_to_peak
         );
     } else {
         defmt::info!(
-            "current zero {=f32} codes (nominal {=f32}), spread {=u16} codes: REFUSED",
+            "current zero {=f32} codes (nominal {=f32}), peak-to-peak {=u16} codes: REFUSED",
             zero,
             ema::control::sense::CURRENT_ZERO_CODE,
-            spread
+            peak_to_peak
         );
     }
     // The board's own refusals (the paper's force convention) still apply.
@@ -678,7 +678,7 @@ impl NorFlash for ChipFlash {
     }
 }
 
-/// Mean and spread of the current channel over board::ZERO_SAMPLES conversions, after
+/// Mean and peak-to-peak of the current channel over board::ZERO_SAMPLES conversions, after
 /// board::ZERO_SETTLE_SAMPLES discarded ones, polled at the trigger rate with the bridge
 /// off. Feeds the watchdog; gives up when a conversion is more than 4 periods late, and
 /// refuses conversions that do not end where the trigger places them.

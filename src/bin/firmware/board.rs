@@ -420,8 +420,8 @@ pub const ZERO_SAMPLES: u32 = 1024;
 /// Largest accepted distance of the measured zero from the nominal one \[codes\]: 100
 /// codes, 0.8 A. Further away the sensor or its reference has drifted.
 pub const ZERO_TOLERANCE_CODES: f32 = 100.0;
-/// Largest accepted spread (max - min) of the zero samples \[codes\]: 0.5 A of noise.
-pub const ZERO_MAX_SPREAD_CODES: u16 = 62;
+/// Largest accepted peak-to-peak (max - min) of the zero samples \[codes\]: 0.5 A of noise.
+pub const ZERO_MAX_PEAK_TO_PEAK_CODES: u16 = 62;
 
 /// Ticks between two status lines (one second).
 pub const STATUS_PERIOD_TICKS: u32 = CONTROL_RATE_HZ;
@@ -510,9 +510,9 @@ pub const fn injected_sequence(channels: [u8; 4]) -> u32 {
 
 /// Whether a measured current zero can be trusted.
 #[must_use]
-pub fn zero_plausible(mean_code: f32, spread_codes: u16) -> bool {
+pub fn zero_plausible(mean_code: f32, peak_to_peak_codes: u16) -> bool {
     (mean_code - CURRENT_ZERO_CODE).abs() <= ZERO_TOLERANCE_CODES
-        && spread_codes <= ZERO_MAX_SPREAD_CODES
+        && peak_to_peak_codes <= ZERO_MAX_PEAK_TO_PEAK_CODES
 }
 
 /// The controller this firmware runs, with the measured current zero (`None`: nominal):

@@ -14,7 +14,7 @@ use super::FIT_WEIGHT_FLOOR;
 ///
 /// Both sums are linear in the readings, so their noise (zero mean) does not bias them,
 /// as it biases a least squares on `y(k)` itself (whose regressor's noise variance a small
-/// probe's readings are comparable with); and each spreads its weight over the whole
+/// probe's readings are comparable with); and each distributes its weight over the whole
 /// decay, so no single reading sets the estimate. (The instrument
 /// `sum w(k) y(k+1) / sum w(k) y(k)` is unbiased too, but its two sums differ by the
 /// first reading alone: one reading's noise on a 50-code step read a soft-sprung

@@ -378,7 +378,7 @@ impl Identification {
             ends: Ends {
                 open_m,
                 closed_m,
-                spread_m: 2.0 * math::sqrt(math::max(var_open, var_closed)),
+                uncertainty_m: 2.0 * math::sqrt(math::max(var_open, var_closed)),
             },
         })
     }

@@ -18,7 +18,7 @@
 //!    ([`LOW_SHARE`], [`HIGH_SHARE`]) at the file's resistance;
 //! 2. at each, wait [`SETTLE_TIME_CONSTANTS`] of the slowest coil time constant the
 //!    identification admits (the closed gap's inductance over the lowest resistance,
-//!    [`SPREAD`] around the file), then average the applied voltage and the measured
+//!    [`FILE_TOLERANCE`] around the file), then average the applied voltage and the measured
 //!    current over [`AVERAGE_TIME_CONSTANTS`] of them (at least [`MIN_AVERAGE_S`]);
 //! 3. `R = (u2 - u1) / (i2 - i1)`. The difference removes what is constant in both steps:
 //!    the current sensor's residual offset and the bridge's voltage drops.
@@ -31,7 +31,7 @@
 //! The resistance reported is measured the same way at the closed stop (below), where the
 //! pull presses the armature against the stop and nothing moves.
 //!
-//! The uncertainty reported is two standard errors of that quotient from the spread of the
+//! The uncertainty reported is two standard errors of that quotient from the scatter of the
 //! averaged currents. The identification is abandoned, with its reason, when the current
 //! exceeds the rating (a coil far below the file's resistance) or the currents of the two
 //! steps do not differ (an open coil); a fault, a disarm or any other order also ends it.
@@ -46,12 +46,12 @@
 //!
 //! 1. **open stop**: the coil off; once the armature has come back and rests (the wait is
 //!    [`RELEASE_PERIODS`] of the slowest mechanical period the identification admits,
-//!    `2 pi / w_n` with the spring and the mass [`SPREAD`] off the file), the reading is
-//!    averaged over a window in which it stays still: its spread within the noise's, and
+//!    `2 pi / w_n` with the spring and the mass [`FILE_TOLERANCE`] off the file), the reading is
+//!    averaged over a window in which it stays still: its peak-to-peak within the noise's, and
 //!    the means of its two halves within the noise of such a difference
 //!    ([`Plan::drift_m`]). An overdamped armature with little preload creeps back onto
 //!    the stop, its spring's pull vanishing there, and a creep of ten codes over a
-//!    window hides inside the noise's spread but not from the halves' means;
+//!    window hides inside the noise's peak-to-peak but not from the halves' means;
 //! 2. **approach**: the voltage ramps over [`RAMP_PERIODS`] mechanical periods to the one
 //!    that holds [`FULL_SHARE`] of the rated current, slowly against the coil's and the
 //!    armature's time constants: the current follows the ramp, the magnet pulls the
@@ -78,7 +78,7 @@
 //! `g^2k`, `g` falling as the file's coil would ([`Plan::guess_factor`], down to
 //! [`FIT_WEIGHT_FLOOR`]): both sums are linear in the readings, so the converter's noise
 //! does not bias them (a least squares on `y(k)` itself, whose regressor carries that
-//! noise, read a soft-sprung plunger's small probe 6 % high), and both spread over the
+//! noise, read a soft-sprung plunger's small probe 6 % high), and both draw on the
 //! whole decay, so no single reading's noise sets the result. `L = -Ts R / ln a` with the
 //! resistance from the closed stop. The probe's pull moves the armature a little
 //! off the open stop (the end stops calibrate how far, from its position averaged over
@@ -111,7 +111,7 @@ pub const LOW_SHARE: f32 = 0.3;
 pub const HIGH_SHARE: f32 = 0.6;
 /// The coil may be this far (either way, as a share) from its file's resistance and its
 /// inductance: the waits are long enough for the slowest such coil.
-pub const SPREAD: f32 = 0.5;
+pub const FILE_TOLERANCE: f32 = 0.5;
 /// Time constants waited at each step before averaging (e^-6: 0.25 % of the step left).
 pub const SETTLE_TIME_CONSTANTS: f32 = 6.0;
 /// Shortest averaging window \[s\] (many converter samples even for a fast coil).
@@ -148,7 +148,7 @@ pub const PROBE_HIGH_SHARE: f32 = 0.2;
 pub const PROBE_LOW_PER_HIGH: f32 = 0.25;
 /// Largest pull of the probe's upper level at the open stop, as a share of the spring's
 /// force over the stroke, for the weakest spring and the strongest magnet within
-/// [`SPREAD`] of the file: a soft spring would let the rated share pull the armature in.
+/// [`FILE_TOLERANCE`] of the file: a soft spring would let the rated share pull the armature in.
 pub const PROBE_PULL_SHARE: f32 = 0.1;
 /// Readings per time constant at the open stop the probe's cycles gather together: a
 /// coil faster than the period gives few per step, and the inductance comes from the

@@ -2,9 +2,9 @@
 //! [`Coil`] it starts from.
 
 use super::{
-    AVERAGE_TIME_CONSTANTS, HIGH_SHARE, LOW_SHARE, MAX_PROBE_CYCLES, MIN_AVERAGE_S,
+    AVERAGE_TIME_CONSTANTS, FILE_TOLERANCE, HIGH_SHARE, LOW_SHARE, MAX_PROBE_CYCLES, MIN_AVERAGE_S,
     PATIENCE_PERIODS, PROBE_HIGH_SHARE, PROBE_LOW_PER_HIGH, PROBE_PULL_SHARE, PROBE_READINGS,
-    RAMP_PERIODS, RELEASE_PERIODS, SETTLE_TIME_CONSTANTS, SPREAD,
+    RAMP_PERIODS, RELEASE_PERIODS, SETTLE_TIME_CONSTANTS,
 };
 use crate::control::math;
 
@@ -27,14 +27,14 @@ pub struct Plan {
     /// The file's coil's current decay factor per period, `exp(-Ts R / L)`, at the open
     /// and at the closed stop: the step-response fits' weights.
     pub guess_factor: [f32; 2],
-    /// Largest spread of the position readings over a window with the armature at rest
+    /// Largest peak-to-peak of the position readings over a window with the armature at rest
     /// \[m\] (the sensor's noise): a wider one restarts the window.
     pub still_m: f32,
     /// Largest difference between the mean positions of a window's two halves with the
     /// armature at rest \[m\]: four deviations of that difference, as [`Plan::still_m`]
     /// is twice four deviations of the difference of two readings. A larger one is a slow
     /// creep (an overdamped armature coming back to a stop with little preload, well
-    /// inside the noise's spread) and restarts the window.
+    /// inside the noise's peak-to-peak) and restarts the window.
     pub drift_m: f32,
     /// Ticks waited after the coil is switched off before the open stop's window (and at
     /// each hold at the closed stop).
@@ -153,16 +153,18 @@ impl Plan {
         {
             return None;
         }
-        // The slowest armature admitted: spring SPREAD softer, mass SPREAD heavier.
-        let slowest_w = natural_rad_s * math::sqrt((1.0 - SPREAD) / (1.0 + SPREAD));
+        // The slowest armature admitted: spring softer and mass heavier by FILE_TOLERANCE.
+        let slowest_w = natural_rad_s * math::sqrt((1.0 - FILE_TOLERANCE) / (1.0 + FILE_TOLERANCE));
         let period_s = 2.0 * core::f32::consts::PI / slowest_w;
-        let slowest_s = closed_inductance_h * (1.0 + SPREAD) / (resistance_ohm * (1.0 - SPREAD));
-        let slowest_open_s = open_inductance_h * (1.0 + SPREAD) / (resistance_ohm * (1.0 - SPREAD));
+        let slowest_s = closed_inductance_h * (1.0 + FILE_TOLERANCE)
+            / (resistance_ohm * (1.0 - FILE_TOLERANCE));
+        let slowest_open_s =
+            open_inductance_h * (1.0 + FILE_TOLERANCE) / (resistance_ohm * (1.0 - FILE_TOLERANCE));
         let settle_s = SETTLE_TIME_CONSTANTS * slowest_s;
         // The weakest spring's force over the stroke against the strongest magnet's pull.
         let pull_a = math::sqrt(
-            2.0 * PROBE_PULL_SHARE * spring_n_per_m * (1.0 - SPREAD) * stroke_m
-                / (open_force_h_per_m * (1.0 + SPREAD)),
+            2.0 * PROBE_PULL_SHARE * spring_n_per_m * (1.0 - FILE_TOLERANCE) * stroke_m
+                / (open_force_h_per_m * (1.0 + FILE_TOLERANCE)),
         );
         let probe_high_a = math::min(PROBE_HIGH_SHARE * rated_a, pull_a);
         let ticks = |s: f32| {

@@ -58,7 +58,7 @@ pub struct Resistance {
     /// Resistance \[ohm\].
     pub ohm: f32,
     /// Two standard errors of it from the converter's noise \[ohm\].
-    pub spread_ohm: f32,
+    pub uncertainty_ohm: f32,
     /// Mean currents of the two steps \[A\].
     pub i_a: [f32; 2],
     /// Mean applied voltages of the two steps \[V\].
@@ -76,7 +76,7 @@ pub struct Ends {
     /// current \[m\].
     pub closed_m: f32,
     /// Two standard errors of the noisier of the two means \[m\].
-    pub spread_m: f32,
+    pub uncertainty_m: f32,
 }
 
 /// The coil's inductance at the two end stops.

@@ -219,7 +219,7 @@ fn an_armature_creeping_back_onto_the_open_stop_is_read_once_there() {
     // 200 to 400 N s/m: damping ratios of 1.6 to 3.2, the slow mode creeping back with
     // a time constant of 44 to 98 ms onto a stop where the spring no longer pulls.
     // Released from the first two steps' pull, the armature is still 5 to 11 um off
-    // the stop when the reading's spread first stays within the noise's (10 um here).
+    // the stop when the reading's peak-to-peak first stays within the noise's (10 um here).
     let open_m = [200.0, 300.0, 400.0, 600.0].map(|friction| {
         let mut creeping = Rig::coil(2.0);
         creeping.friction = friction;

@@ -137,11 +137,11 @@ pub(super) fn resistance(
         return Err(Abort::NoResponse);
     }
     let ohm = (u2 - u1) / di;
-    let spread_ohm = 2.0 * ohm * math::sqrt(var1 + var2) / di;
+    let uncertainty_ohm = 2.0 * ohm * math::sqrt(var1 + var2) / di;
     let n = first.n.saturating_add(second.n).max(1) as f32;
     Ok(Resistance {
         ohm,
-        spread_ohm,
+        uncertainty_ohm,
         i_a: [i1, i2],
         u_v: [u1, u2],
         vbus_v: (first.vbus + second.vbus) / n,

@@ -66,7 +66,7 @@ pub fn commission<P: Port>(
         out,
         "coil resistance {:.4} ohm +- {:.4} (two standard errors); the file says {file_r} ohm ({:+.1} %)",
         r.ohm,
-        r.spread_ohm,
+        r.uncertainty_ohm,
         100.0 * (r.ohm / file_r - 1.0)
     )?;
     writeln!(
@@ -93,7 +93,7 @@ pub fn commission<P: Port>(
         "position at the open stop {:.1} um, at the closed stop {:.1} um (+- {:.2} um, two standard errors, in the file's calibration)",
         1e6 * e.open_m,
         1e6 * e.closed_m,
-        1e6 * e.spread_m
+        1e6 * e.uncertainty_m
     )?;
     writeln!(
         out,

@@ -19,7 +19,7 @@ use crate::link::{Link, Port};
 /// tolerances of these and of the surfaces, and the magnetic circuit in the board's own
 /// form (its kind is fixed by the firmware build). A circuit measured in the board's form
 /// is carried as it is; one in the two-inductance form (the stops' alone) on a board with
-/// a pole geometry without spread, whose `1/L` is linear in the gap as the measured
+/// a pole geometry without fringing spread, whose `1/L` is linear in the gap as the measured
 /// one's, has the pole's sides scaled for the measured airgap reluctance (the fringing
 /// coefficient kept) and the iron's reluctance set to the measured one.
 ///
@@ -81,7 +81,7 @@ pub fn commissioned_params(
                 fringing_spread == 0.0,
                 "the board's magnetics.geometry.fringing_spread = {fringing_spread}: its 1/L is \
                  not linear in the gap and two inductances do not fix it; commission with the \
-                 holds measured (--mechanics), whose fit gives the spread"
+                 holds measured (--mechanics), whose fit gives the fringing spread"
             );
             // The measured line in the board's form.
             let line = hil_sim::identification::commissioning::Circuit::line(
@@ -219,7 +219,7 @@ pub fn actuator_file(
                 format!(
                     "{} +- {} H at {} m",
                     sig(h.inductance_h, 4),
-                    sig(h.spread_h, 2),
+                    sig(h.uncertainty_h, 2),
                     sig(h.x_m, 4)
                 )
             })
@@ -247,7 +247,7 @@ pub fn actuator_file(
              #   tolerance.spring = {} (the measurement's, where below the file's)\n\
              {armature}{inductances}",
             sig(s.n_per_m, 4),
-            sig(s.spread_n_per_m, 2),
+            sig(s.uncertainty_n_per_m, 2),
             sig(s.preload_n, 4),
             sig(f64::from(a.tolerance.spring), 3)
         )
@@ -269,7 +269,7 @@ pub fn actuator_file(
          #   (in the calibration of this file's board.position_span_m)\n\
          {spring_head}\
          # Tune it before use: hil-sim tune <this file>\n",
-        r.ohm, r.spread_ohm, l.open_h, l.closed_h, e.open_m, e.closed_m, e.spread_m
+        r.ohm, r.uncertainty_ohm, l.open_h, l.closed_h, e.open_m, e.closed_m, e.uncertainty_m
     );
     Ok(head + &toml::to_string(&a)?)
 }

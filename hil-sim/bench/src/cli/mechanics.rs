@@ -341,14 +341,14 @@ fn print_inductances(
             Some(h) => format!(
                 "{} uH +- {} at {} mm",
                 sig(h.inductance_h * 1e6, 4),
-                sig(h.spread_h * 1e6, 2),
+                sig(h.uncertainty_h * 1e6, 2),
                 sig(h.x_m * 1e3, 4)
             ),
             None => format!(
-                "not read at the hold at {} mm (the current did not step, or the probes \
-                 spread above {} %)",
+                "not read at the hold at {} mm (the current did not step, or the probes' \
+                 uncertainty above {} %)",
                 sig(f * stroke_m * 1e3, 3),
-                100.0 * hil_sim::identification::commissioning::HOLD_PROBE_MAX_SPREAD
+                100.0 * hil_sim::identification::commissioning::HOLD_PROBE_MAX_UNCERTAINTY
             ),
         };
         writeln!(out, "  inductance {line}")?;
@@ -403,7 +403,7 @@ fn print_mechanics(
         out,
         "spring rate {} N/m +- {} (two standard errors), preload {} N; the file says {} N/m, {} N",
         sig(s.n_per_m, 4),
-        sig(s.spread_n_per_m, 2),
+        sig(s.uncertainty_n_per_m, 2),
         sig(s.preload_n, 4),
         file.mechanics.spring_n_per_m,
         file.mechanics.preload_n

@@ -14,7 +14,7 @@ pub struct Armature {
     /// The stiffness the spring's fit missed, as the moves read it (`K` in
     /// [`fit_armature`]) \[N/m\].
     pub stiffness_n_per_m: f64,
-    /// Two standard errors of the mass, from the fit's own spread over the moves
+    /// Two standard errors of the mass, from the fit's own scatter over the moves
     /// (the jackknife, each move left out in turn; NaN with a single move) \[kg\].
     pub mass_uncertainty_kg: f64,
     /// Two standard errors of the friction, the same way \[N s/m\].
@@ -51,7 +51,7 @@ pub const STOP_SHARE: f64 = 0.01;
 /// sliding-mode current that alternates from tick to tick would, sampled, integrate to a
 /// pull off by its ripple, and its mean would miss the ripple's share of the pull.
 ///
-/// The fit's uncertainty is its spread over the moves, by the jackknife: the fit again
+/// The fit's uncertainty is its scatter over the moves, by the jackknife: the fit again
 /// with each move left out in turn, `var = (n - 1) / n sum (theta_k - mean)^2`. The
 /// residuals of a double integral are correlated along a move, so the normal equations'
 /// own covariance, which takes them as independent, would read the error many times too
@@ -129,7 +129,7 @@ pub fn fit_armature(
             })
             .collect();
         let n = moves as f64;
-        let spread = |p: usize| {
+        let uncertainty = |p: usize| {
             let mean = leave_one_out.iter().map(|t| t[p]).sum::<f64>() / n;
             let var = (n - 1.0) / n
                 * leave_one_out
@@ -138,7 +138,7 @@ pub fn fit_armature(
                     .sum::<f64>();
             2.0 * var.sqrt()
         };
-        (spread(0), spread(1))
+        (uncertainty(0), uncertainty(1))
     };
     Some(Armature {
         mass_kg: theta[0],

@@ -7,7 +7,7 @@ use super::{HoldInductance, IRON_SHARE};
 
 /// How well the routine's step responses read an end stop's inductance, two standard
 /// errors, relative: the weight of the stops' readings in [`Circuit::fit`] (the routine
-/// reports no spread of its own). About what the holds' probes read: the family's drawn
+/// reports no uncertainty of its own). About what the holds' probes read: the family's drawn
 /// plants read the stops with median errors of 0.1 % to 1 % (`hil-sim commission`),
 /// the holds with two standard errors of 0.2 % to 0.9 %. Weighed as the 5 % the
 /// routine is held to, the stops counted for nothing beside the holds, and the line
@@ -175,7 +175,7 @@ impl Circuit {
     /// residual gap, stroke and pole's aspect; a file in the two-inductance form: a square
     /// pole).
     ///
-    /// Weighted least squares on `1/L`, each reading by its own spread (the holds': their
+    /// Weighted least squares on `1/L`, each reading by its own uncertainty (the holds': their
     /// probes'; the stops': [`STOP_INDUCTANCE_CLASS`]): for each growth `q` the line in
     /// `c0`, `c1` is exact, and `q` is searched from none to [`GROWTH_MAX`], on a grid
     /// and then by golden section about its best point, and kept only where it explains
@@ -201,7 +201,7 @@ impl Circuit {
             ),
         ];
         points.extend(holds.iter().flatten().map(|h| {
-            let (x, l, two_se) = (h.x_m, h.inductance_h, h.spread_h);
+            let (x, l, two_se) = (h.x_m, h.inductance_h, h.uncertainty_h);
             let sd = 0.5 * two_se / l;
             (stops.gap_m(x), 1.0 / l, (l / sd).powi(2))
         }));

@@ -32,7 +32,8 @@ pub struct Mechanics {
     pub armature: Option<Armature>,
     /// The inductance at each hold, from its probe
     /// ([`probe_inductance`](super::probe_inductance)); none where no probe ran or its
-    /// spread exceeds [`HOLD_PROBE_MAX_SPREAD`](super::HOLD_PROBE_MAX_SPREAD).
+    /// uncertainty exceeds
+    /// [`HOLD_PROBE_MAX_UNCERTAINTY`](super::HOLD_PROBE_MAX_UNCERTAINTY).
     pub inductances: [Option<HoldInductance>; crate::simulation::actuator::SEQUENCE.len()],
     /// The magnetic circuit fitted to the stops' inductances and the holds'
     /// ([`Circuit::fit`]): the pull the spring and the mass are read with.
@@ -131,7 +132,7 @@ impl Mechanics {
     }
 }
 
-/// A hold whose window's position spreads (one standard deviation) over more than this
+/// A hold whose window's position scatters (one standard deviation) over more than this
 /// share of the stroke is not at rest: the loop limit-cycles about it.
 pub const REST_SHARE: f64 = 0.002;
 
@@ -239,15 +240,15 @@ pub fn mechanics(
 
 /// Attempts at the holds of [`mechanics`] (and of the bench's): the first with the
 /// default tuning, each after a fault with a slower loop, the backstepping's `alpha` and
-/// the observer's bandwidth [`RETRY_GAIN_SHARE`] times the attempt's before. On the
-/// family's drawn plants the holds that a monitor ends are armatures 10-30 % lighter
-/// than their file's, whose moves' acceleration the observer, with the file's mass,
-/// mispredicts in proportion: on the 12 V solenoid the stuck-sensor monitor ends them,
-/// on the 50 kHz pilot the observer's disturbance runs away on the first move, which
-/// overshoots its target several times over with the coil off, and the residual
-/// detector, reading the back-EMF from that velocity, names `current_stuck`. The
-/// slower loop holds them to their end (`hil-sim commission NAME` counts the attempts
-/// and the holds that measured nothing).
+/// the observer's bandwidth [`RETRY_GAIN_SHARE`] times the attempt's before. A hold a
+/// monitor ends is most often an armature lighter than its file's: the observer, with
+/// the file's mass, mispredicts its acceleration in proportion to the loop's gains, and a
+/// fast loop turns that into a runaway disturbance estimate, an overshoot, and a velocity
+/// from which a detector names a fault the board does not have. A slower loop holds such
+/// an armature to the end. Three attempts bring the gains down to `0.6^2 = 0.36` of the
+/// default, slow enough for an armature tens of per cent lighter, for at most three
+/// holds' time; holds that still fault then point at something else than the mass
+/// (`hil-sim commission NAME` counts the attempts and the holds that measured nothing).
 pub const HOLD_ATTEMPTS: u32 = 3;
 
 /// Share of an attempt's loop gains, the backstepping's `alpha` and the observer's

@@ -95,7 +95,7 @@ pub fn measured(
         a.mechanics.spring_n_per_m = m.spring.n_per_m as f32;
         a.mechanics.preload_n = m.spring.preload_n as f32;
         let holds = crate::simulation::actuator::SEQUENCE.len();
-        let spring = fitted_tolerance(m.spring.n_per_m, m.spring.spread_n_per_m, holds - 2);
+        let spring = fitted_tolerance(m.spring.n_per_m, m.spring.uncertainty_n_per_m, holds - 2);
         a.tolerance.spring = a.tolerance.spring.min(spring as f32);
         if let Some(arm) = m.armature {
             let dof = arm.moves.saturating_sub(1);
@@ -154,7 +154,7 @@ pub fn measured(
             .inductances
             .iter()
             .flatten()
-            .map(|h| h.spread_h / h.inductance_h)
+            .map(|h| h.uncertainty_h / h.inductance_h)
             .fold(super::STOP_INDUCTANCE_CLASS, f64::max)
             * 0.5
             * coverage_factor(usize::MAX);

@@ -54,7 +54,7 @@ pub use holds::{
 pub use measured::{coverage_factor, fitted_tolerance, measured, CONVERTER_SCALE, IRON_SHARE};
 pub use probe::{
     hold_inductance, hold_probe, probe_capture, probe_inductance, HoldInductance, ProbeSample,
-    HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_SPREAD, HOLD_PROBE_RUNS,
+    HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_UNCERTAINTY, HOLD_PROBE_RUNS,
     HOLD_PROBE_SHARE,
 };
 pub use run::{

@@ -7,34 +7,34 @@ use ema::device::commission::Report;
 use super::{corrected, Circuit};
 
 /// Share of the rated current the inductance probe at each hold steps the desired
-/// current up and down by: small beside the hold's current, so that the residual
-/// detector's bounds, which the probe's steps test at every tick, hold on a coil the
-/// stops' two-point line misses by a few per cent between them (at a tenth of the
-/// rating, a drawn micro-valve's probe latched `coil_short`).
+/// current up and down by. A larger step stands further above the converter's noise, but
+/// every step tests the residual detector's bounds, which rest on the stops' two-point
+/// line and miss a coil by a few per cent between the stops: a step small beside the
+/// hold's current stays inside them, so that a probe never latches a fault (such as
+/// `coil_short`) on a healthy coil.
 pub const HOLD_PROBE_SHARE: f64 = 0.05;
 
 /// Periods at each level of the hold's probe: the second half's readings are each
 /// level's mean, and the relation the probe's estimate rests on is exact whether or not
-/// the coil's current settles within a level. Longer levels do worse: sized at four
-/// times the closed coil's slew over the step, they read the positioner's holds with a
-/// median error of 1.6 % instead of 0.28 % over 1000 drawn plants (the pull's square
-/// wave, slower, moves the armature more).
+/// the coil's current settles within a level, so a level need not last until it settles.
+/// Short levels keep the pull's square wave fast beside the armature, which then barely
+/// moves under it; longer ones let it follow the wave, and its motion biases the reading.
 pub const HOLD_PROBE_HALF_TICKS: u16 = 16;
 
-/// Largest spread (two standard errors, relative) of an inductance a hold's probe reads
-/// for it to count as read: a wider one is a hold the armature did not keep still.
-pub const HOLD_PROBE_MAX_SPREAD: f64 = 0.03;
+/// Largest uncertainty (two standard errors, relative) of an inductance a hold's probe
+/// reads for it to count as read: a wider one is a hold the armature did not keep still.
+pub const HOLD_PROBE_MAX_UNCERTAINTY: f64 = 0.03;
 
 /// Cycles of each of the hold's probes (up and down): as many as the board's capture
 /// holds at every tick with the converter's delay and a tick after them
 /// ([`probe_capture`]); [`HOLD_PROBE_RUNS`] probes per hold.
 pub const HOLD_PROBE_CYCLES: u16 = 7;
 
-/// Probes at each hold, one captured at a time: the estimate's spread falls as the square
-/// root of their cycles' number, and three give about as many as one probe of 16 cycles
-/// (levels half as long, more cycles in the same capture, read a drawn 12 V solenoid's
-/// holds up to 7 % off, measured before [`hold_inductance`] took out the supply's sag and
-/// the armature's motion: its coil does not step within them).
+/// Probes at each hold, one captured at a time: the estimate's uncertainty falls as the
+/// square root of the number of its cycles, and three probes of [`HOLD_PROBE_CYCLES`]
+/// give about as many as one of 16 cycles would. That one would need levels half as long
+/// to fit the capture, within which a slow coil's current does not step; more probes cost
+/// only the hold's time.
 pub const HOLD_PROBE_RUNS: usize = 3;
 
 /// The board's capture of a probe of `ticks`, the converter `delay` ticks late: the
@@ -82,9 +82,9 @@ pub fn hold_probe(a: &Actuator) -> crate::simulation::scenario::InductanceProbe 
 /// of the changes into the upper levels less those into the lower ones, the one over the
 /// other. A constant error of the applied voltage (the bridge's drops) cancels between
 /// the steps up and down, and a resistance a fraction off costs that fraction times a
-/// level's length over twice the coil's time constant. The spread is the cycles' (a
-/// step down and the step up after it), over every run. `None` without two such cycles,
-/// or a current that did not step.
+/// level's length over twice the coil's time constant. The uncertainty is the scatter of
+/// the cycles (a step down and the step up after it), over every run. `None` without two
+/// such cycles, or a current that did not step.
 #[must_use]
 #[expect(clippy::cast_precision_loss)]
 pub fn probe_inductance(
@@ -198,7 +198,7 @@ pub struct HoldInductance {
     /// The inductance there \[H\].
     pub inductance_h: f64,
     /// Two standard errors of it \[H\].
-    pub spread_h: f64,
+    pub uncertainty_h: f64,
 }
 
 /// One hold's inductance from its probes' captures (the board's samples at every tick
@@ -208,8 +208,8 @@ pub struct HoldInductance {
 /// corrected with the end stops the `report` measured, `x = stroke (y - y_open) /
 /// (y_closed - y_open)`, the
 /// inductance and two standard errors of it; `None` when the probes read nothing or
-/// their spread exceeds [`HOLD_PROBE_MAX_SPREAD`]. The same reading on the bench and in
-/// [`mechanics`](super::mechanics).
+/// their uncertainty exceeds [`HOLD_PROBE_MAX_UNCERTAINTY`]. The same reading on the bench
+/// and in [`mechanics`](super::mechanics).
 ///
 /// Two things the coil sees besides its inductance are taken out first:
 /// - **The supply's sag.** The bridge sets its duty for the bus it last read, but over
@@ -264,7 +264,7 @@ pub fn hold_inductance(
         });
     let x = position(y_sum / n);
     let r_ohm = f64::from(report.resistance.ohm);
-    let (l, spread) = probe_inductance(
+    let (l, uncertainty) = probe_inductance(
         &slices,
         (i_sum / n) * line.force_coefficient_h_per_m(x) / r_ohm,
         usize::from(probe.half_ticks),
@@ -272,9 +272,9 @@ pub fn hold_inductance(
         ts_s,
         r_ohm,
     )?;
-    (spread < HOLD_PROBE_MAX_SPREAD * l).then_some(HoldInductance {
+    (uncertainty < HOLD_PROBE_MAX_UNCERTAINTY * l).then_some(HoldInductance {
         x_m: x,
         inductance_h: l,
-        spread_h: spread,
+        uncertainty_h: uncertainty,
     })
 }

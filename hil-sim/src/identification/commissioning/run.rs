@@ -25,7 +25,7 @@ use crate::simulation::Error;
 /// ([`CalibrationClass::default`]: a current gain error goes straight into the resistance
 /// measured, `R = du / di`), and the converter's noise its own realisation: the
 /// inductances come from a few noisy current samples of a decay, so one noise sequence
-/// shared by every draw would give every draw the same error and hide its spread.
+/// shared by every draw would give every draw the same error and hide its scatter.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Specimen {
     /// Factors on the file's surfaces, resistance, spring rate, mass and friction.
@@ -401,7 +401,7 @@ pub fn run_on(a: &Actuator, plant: &Params, draw: Option<&Specimen>) -> Result<O
     })
 }
 
-/// Positions, evenly spread over the stroke with both stops, at which [`curve_error`]
+/// Positions, evenly spaced over the stroke with both stops, at which [`curve_error`]
 /// compares the inductances.
 pub const CURVE_POSITIONS: usize = 17;
 

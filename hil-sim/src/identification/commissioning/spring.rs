@@ -14,7 +14,7 @@ pub struct Spring {
     pub preload_n: f64,
     /// Two standard errors of the rate, from the holds' fit's residuals (kept when the
     /// moves correct the rate: [`Mechanics::fit`](super::Mechanics::fit)) \[N/m\].
-    pub spread_n_per_m: f64,
+    pub uncertainty_n_per_m: f64,
     /// The holds: corrected position \[m\] and mean magnetic force \[N\].
     pub holds: [(f64, f64); crate::simulation::actuator::SEQUENCE.len()],
 }
@@ -78,7 +78,7 @@ pub fn fit_spring(
     Spring {
         n_per_m: k,
         preload_n: preload.max(0.0),
-        spread_n_per_m: 2.0 * (residual / (n - 2.0) / sxx).sqrt(),
+        uncertainty_n_per_m: 2.0 * (residual / (n - 2.0) / sxx).sqrt(),
         holds: means,
     }
 }

@@ -25,13 +25,13 @@ pub struct Initial {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Uncertainty {
-    /// Relative spread of the coil resistance (`0.2` = +-20 %) \[-\].
+    /// Relative tolerance of the coil resistance (`0.2` = +-20 %) \[-\].
     pub resistance_rel: f64,
-    /// Relative spread of the spring constant and, drawn on its own, of the preload \[-\].
+    /// Relative tolerance of the spring constant and, drawn on its own, of the preload \[-\].
     pub spring_rel: f64,
-    /// Relative spread of the moving mass \[-\].
+    /// Relative tolerance of the moving mass \[-\].
     pub mass_rel: f64,
-    /// Relative spread of the viscous friction \[-\].
+    /// Relative tolerance of the viscous friction \[-\].
     pub friction_rel: f64,
     /// Probability that a drawn plant uses the energy-consistent force model (else the
     /// paper's frozen one) \[-\].
@@ -61,7 +61,7 @@ impl Default for Uncertainty {
 const DRAW_MARGIN: f64 = 1e-6;
 
 impl Uncertainty {
-    /// The controller's own uncertainty set: the spreads its plant's tolerances state,
+    /// The controller's own uncertainty set: the tolerances its plant states,
     /// both force models and both surface models equally likely.
     #[must_use]
     pub fn of(plant: &ema::control::model::Plant) -> Self {
@@ -75,7 +75,7 @@ impl Uncertainty {
         }
     }
 
-    /// Checks the spreads (in `[0, 1)`) and the probabilities (in `[0, 1]`).
+    /// Checks the tolerances (in `[0, 1)`) and the probabilities (in `[0, 1]`).
     ///
     /// # Errors
     /// The first bad field, by name.
@@ -113,13 +113,13 @@ impl Uncertainty {
     }
 
     /// Draws a true plant around the controller's nominal plant `nominal`: mechanics and
-    /// resistance within the relative spreads, each gap's surface anywhere within the
+    /// resistance within the relative tolerances, each gap's surface anywhere within the
     /// physical surface bounds `[S_lo, S_hi]` over the whole stroke
     /// (`ema::control::model::Plant::physical_bounds`: the paper's bounds, which the
     /// controller's contain) (constant, or a square pole `(a + k g)^2` whose surface at the
     /// two ends of the gap range is drawn inside the bounds), and the force model.
     ///
-    /// Never panics: spreads and probabilities outside their ranges (see
+    /// Never panics: tolerances and probabilities outside their ranges (see
     /// [`Uncertainty::validate`]) are clamped into them, and degenerate bounds give the
     /// middle surface.
     pub fn draw<R: Rng + ?Sized>(
@@ -160,12 +160,12 @@ impl Uncertainty {
                 Surface::Constant { s_m2: s1 }
             };
         }
-        let mut spread = |v: f64, r: f64| v * (1.0 + rng.random_range(-rel(r)..=rel(r)));
-        p.resistance_ohm = spread(p.resistance_ohm, self.resistance_rel);
-        p.spring_n_per_m = spread(p.spring_n_per_m, self.spring_rel);
-        p.preload_n = spread(p.preload_n, self.spring_rel);
-        p.mass_kg = spread(p.mass_kg, self.mass_rel);
-        p.friction_n_s_per_m = spread(p.friction_n_s_per_m, self.friction_rel);
+        let mut vary = |v: f64, r: f64| v * (1.0 + rng.random_range(-rel(r)..=rel(r)));
+        p.resistance_ohm = vary(p.resistance_ohm, self.resistance_rel);
+        p.spring_n_per_m = vary(p.spring_n_per_m, self.spring_rel);
+        p.preload_n = vary(p.preload_n, self.spring_rel);
+        p.mass_kg = vary(p.mass_kg, self.mass_rel);
+        p.friction_n_s_per_m = vary(p.friction_n_s_per_m, self.friction_rel);
         p.force = if rng.random_bool(probability(self.energy_consistent_probability)) {
             ForceModel::EnergyConsistent
         } else {

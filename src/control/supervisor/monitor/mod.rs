@@ -64,7 +64,7 @@
 //!
 //! The motional back-EMF `e = s_emf v i mu(g)` (the armature's velocity `v` from the
 //! observer) adds to the applied voltage: `di = k (u + e - R i) / (1 + R k / 2)`. It is
-//! taken with the nominal `mu` and an allowance of [`EMF_SPREAD`] of itself either way
+//! taken with the nominal `mu` and an allowance of [`EMF_ALLOWANCE`] of itself either way
 //! (the surfaces' bounds and the velocity estimate's error): on a fast, small valve it is
 //! as large as the resistive drop, and left out it reads as a coil outside its bounds.
 //!
@@ -126,7 +126,7 @@ mod tests;
 mod thermal;
 mod tracking;
 
-pub use residual::{Residual, EMF_SPREAD};
+pub use residual::{Residual, EMF_ALLOWANCE};
 pub use stuck::{Stuck, MOVING_RATIO};
 pub use thermal::Thermal;
 pub use tracking::Tracking;

@@ -8,7 +8,7 @@ use crate::control::supervisor::Fault;
 /// Relative allowance on the motional back-EMF in the residual: the force coefficient
 /// anywhere in its bounds (at most +-25 % of nominal for +-20 % surfaces) and the
 /// velocity estimate's error during a move \[-\].
-pub const EMF_SPREAD: f32 = 0.5;
+pub const EMF_ALLOWANCE: f32 = 0.5;
 
 /// Electrical residual (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,7 +56,7 @@ impl Config {
         // Applied voltage plus the motional back-EMF, with its allowance.
         let emf = self.emf_sign * inp.v_mps * i0 * self.nominal.force_coefficient_h_per_m(g);
         let u = u + emf;
-        let du = EMF_SPREAD * emf.abs();
+        let du = EMF_ALLOWANCE * emf.abs();
         // The four corner coils (L_lo or L_hi, R_lo or R_hi): gain and resistance of
         // `di = k (u - R i) / (1 + R k / 2)`, with `k = Ts / L = Ts rho(g) / N^2`.
         // `k_fast` (`Ts / L_lo`) is the larger gain, `k_slow` (`Ts / L_hi`) the smaller.
@@ -145,8 +145,8 @@ impl Config {
         }
         let anchor = st.bank_anchor;
         // Neither distance is NaN (the folds skip NaN, the anchor is a finite reading).
-        let spread = math::running_max((hi - anchor).abs(), (lo - anchor).abs());
-        let widen = settings.margin * spread + self.noise_a + st.bank_emf;
+        let half_width = math::running_max((hi - anchor).abs(), (lo - anchor).abs());
+        let widen = settings.margin * half_width + self.noise_a + st.bank_emf;
         let side: i8 = if i_a > hi + widen {
             1
         } else if i_a < lo - widen {

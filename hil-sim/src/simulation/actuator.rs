@@ -28,7 +28,7 @@ use ema::control::actuator::Actuator;
 use ema::control::shaping;
 use ema::control::shaping::SETTLING_CLAIM_S;
 
-use crate::simulation::catalog::LoadError;
+use crate::simulation::files::LoadError;
 use crate::simulation::hal::{Adc, Supply};
 use crate::simulation::plant::ForceModel;
 use crate::simulation::scenario::Reference;
@@ -36,6 +36,9 @@ use crate::simulation::scenario::{
     Bridge, Initial, Integration, Scenario, Sensors, StepAt, TruePlant,
 };
 use crate::simulation::Error;
+
+#[doc(inline)]
+pub use crate::simulation::hal::{pwm_full_scale, TIMER_CLOCK_HZ};
 
 /// An actuator file kept in the repository.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,7 +55,7 @@ impl Entry {
     /// The first line of the file's leading comment: what the actuator is.
     #[must_use]
     pub fn summary(&self) -> &'static str {
-        crate::simulation::catalog::summary(self.text)
+        crate::simulation::files::summary(self.text)
     }
 }
 
@@ -209,18 +212,6 @@ pub fn settling_target_s(settings: &ema::control::Settings, from_m: f64, to_m: f
     })
 }
 
-/// The PWM full-scale compare value at `rate_hz` for a centre-aligned timer clocked at
-/// [`TIMER_CLOCK_HZ`]: half a period in counts, plus one for 100 %.
-#[must_use]
-#[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-pub fn pwm_full_scale(rate_hz: f64) -> u16 {
-    let counts = (TIMER_CLOCK_HZ / (2.0 * rate_hz)).round();
-    (counts.clamp(1.0, f64::from(u16::MAX - 1)) as u16) + 1
-}
-
-/// The firmware's PWM timer clock (TIM1 at 168 MHz) \[Hz\].
-pub const TIMER_CLOCK_HZ: f64 = 168e6;
-
 /// How long each position of the [`SEQUENCE`] over `stroke_m` is held with `controller`:
 /// the slowest move's settling target plus twice the steady window, in whole milliseconds
 /// (so the step times fall on ticks at any usual rate) \[s\].
@@ -319,4 +310,59 @@ pub fn planner(settings: &ema::control::Settings) -> Option<shaping::Config> {
         .shaping?
         .build(&settings.plant, 1.0 / settings.rate_hz)
         .ok()
+}
+
+// The product's scenarios are an actuator's judging scenario ([`scenario`]): defined
+// here, above `scenario`.
+impl Scenario {
+    /// The product's realistic default at an ISR rate of `rate_hz` on a `supply_v`
+    /// supply: the product's actuator ([`ema::control::actuator::Actuator::PRODUCT`], the
+    /// physical convention) with every setting derived from it (the practical law,
+    /// extended-state observer, one sample of measurement delay, reference shaping, every
+    /// fault detector), judged as [`crate::simulation::actuator::scenario`] judges any actuator
+    /// (converter noise and delay, supply resistance, averaged bridge, nominal plant with
+    /// frozen fringing), on the paper's step from 1 mm to 3 mm from rest without current,
+    /// 0.4 s.
+    ///
+    /// # Errors
+    /// A rate or supply the derivation refuses, by name.
+    #[expect(clippy::cast_possible_truncation)]
+    pub fn product(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
+        let act = Actuator::PRODUCT
+            .with_rate_hz(rate_hz as f32)
+            .with_supply_v(supply_v as f32);
+        let sc = crate::simulation::actuator::scenario(
+            &format!("product-{rate_hz}hz-{supply_v}v"),
+            &act,
+        )?;
+        Ok(sc
+            .with_reference(Reference::Step {
+                from_m: 1e-3,
+                to_m: 3e-3,
+                at_s: 0.0,
+            })
+            .with_initial(Initial {
+                x_m: 1e-3,
+                v_mps: 0.0,
+                i_a: 0.0,
+            })
+            .with_duration_s(0.4))
+    }
+
+    /// The product's actuator at `rate_hz` on `supply_v` on its evaluation sequence
+    /// ([`crate::simulation::actuator::scenario`]: from rest at the open stop, 0.5 mm, then
+    /// 3.5 mm at 0.3 s, 1.5 mm at 0.6 s and 3 mm at 0.9 s; 1.2 s in all).
+    ///
+    /// # Errors
+    /// A rate or supply the derivation refuses, by name.
+    #[expect(clippy::cast_possible_truncation)]
+    pub fn product_sequence(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
+        let act = Actuator::PRODUCT
+            .with_rate_hz(rate_hz as f32)
+            .with_supply_v(supply_v as f32);
+        crate::simulation::actuator::scenario(
+            &format!("product-sequence-{rate_hz}hz-{supply_v}v"),
+            &act,
+        )
+    }
 }

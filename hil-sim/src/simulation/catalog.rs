@@ -22,6 +22,7 @@
 use std::fmt;
 use std::path::Path;
 
+pub use crate::simulation::files::{summary, LoadError};
 use crate::simulation::hal;
 use crate::simulation::scenario::Scenario;
 
@@ -40,16 +41,6 @@ impl Entry {
     pub fn summary(&self) -> &'static str {
         summary(self.text)
     }
-}
-
-/// The first line of a TOML file's leading comment, trimmed (empty without one): what a
-/// scenario or an actuator file describes.
-#[must_use]
-pub fn summary(text: &str) -> &str {
-    text.lines()
-        .next()
-        .and_then(|l| l.strip_prefix('#'))
-        .map_or("", str::trim)
 }
 
 /// The embedded scenarios, in the order `hil-sim scenarios` lists them.
@@ -78,44 +69,8 @@ pub fn embedded(name: &str) -> Option<&'static Entry> {
     EMBEDDED.iter().find(|e| e.name == name)
 }
 
-/// Why a scenario could not be loaded.
-#[derive(Clone, Debug, PartialEq)]
-pub enum LoadError {
-    /// Neither an embedded name nor a readable file.
-    NotFound {
-        /// What was asked for.
-        what: String,
-        /// Why the file could not be read.
-        io: String,
-    },
-    /// The TOML does not parse or does not describe a scenario (unknown field, missing
-    /// field, wrong type).
-    Toml {
-        /// The file (or embedded name).
-        origin: String,
-        /// toml's message: line, column, the line itself and what is wrong.
-        message: String,
-    },
-    /// A parameter is refused.
-    Invalid {
-        /// The file (or embedded name).
-        origin: String,
-        /// The refused parameter, named, with its value.
-        error: crate::simulation::Error,
-    },
-}
-
-impl LoadError {
-    /// The refused parameter's dotted name, for [`LoadError::Invalid`].
-    #[must_use]
-    pub fn field(&self) -> Option<&str> {
-        match self {
-            LoadError::Invalid { error, .. } => Some(error.name()),
-            _ => None,
-        }
-    }
-}
-
+// (`LoadError` is defined in `files`, below the actuator files; its message names the
+// embedded scenarios.)
 impl fmt::Display for LoadError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

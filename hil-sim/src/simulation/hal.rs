@@ -591,6 +591,18 @@ impl Converter {
     }
 }
 
+/// The PWM full-scale compare value at `rate_hz` for a centre-aligned timer clocked at
+/// [`TIMER_CLOCK_HZ`]: half a period in counts, plus one for 100 %.
+#[must_use]
+#[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+pub fn pwm_full_scale(rate_hz: f64) -> u16 {
+    let counts = (TIMER_CLOCK_HZ / (2.0 * rate_hz)).round();
+    (counts.clamp(1.0, f64::from(u16::MAX - 1)) as u16) + 1
+}
+
+/// The firmware's PWM timer clock (TIM1 at 168 MHz) \[Hz\].
+pub const TIMER_CLOCK_HZ: f64 = 168e6;
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -41,8 +41,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::simulation::plant::Params;
 use crate::simulation::scenario::{Scenario, SegmentSpec};
-use crate::simulation::sim::{fault_name, ImpactAt, Sample};
-use crate::simulation::targets::{worse, worse_low};
+use crate::simulation::trace::{fault_name, ImpactAt, Sample};
 use crate::simulation::Error;
 
 /// Metrics of one reference segment.
@@ -384,6 +383,22 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
             .map(|i| i.impact.speed_mps)
             .reduce(worse),
     }
+}
+
+/// The larger of two values where a `NaN` wins (a metric that is not a number must never
+/// pass for a good one).
+pub(crate) fn worse(acc: f64, v: f64) -> f64 {
+    if v.is_nan() || acc.is_nan() {
+        f64::NAN
+    } else {
+        acc.max(v)
+    }
+}
+
+/// The smaller of two values where a `NaN` wins: [`worse`] for a metric whose low side is
+/// the bad one.
+pub(crate) fn worse_low(acc: f64, v: f64) -> f64 {
+    -worse(-acc, -v)
 }
 
 #[cfg(test)]

@@ -22,6 +22,7 @@ use serde::{Deserialize, Serialize};
 use ema::control::actuator::RIPPLE_SHARE;
 
 use crate::simulation::draw::Draw;
+pub(crate) use crate::simulation::metrics::worse;
 use crate::simulation::metrics::Metrics;
 use crate::simulation::scenario::Scenario;
 
@@ -120,22 +121,6 @@ pub struct Worst {
     pub nan_runs: usize,
     /// Runs checked.
     pub runs: usize,
-}
-
-/// The larger of two values where a `NaN` wins (a metric that is not a number must never
-/// pass for a good one).
-pub(crate) fn worse(acc: f64, v: f64) -> f64 {
-    if v.is_nan() || acc.is_nan() {
-        f64::NAN
-    } else {
-        acc.max(v)
-    }
-}
-
-/// The smaller of two values where a `NaN` wins: [`worse`] for a metric whose low side is
-/// the bad one.
-pub(crate) fn worse_low(acc: f64, v: f64) -> f64 {
-    -worse(-acc, -v)
 }
 
 impl Worst {

@@ -96,7 +96,7 @@ impl Default for Bridge {
     fn default() -> Self {
         Self {
             mode: BridgeMode::Averaged,
-            max_duty: crate::simulation::actuator::pwm_full_scale(20e3),
+            max_duty: crate::simulation::hal::pwm_full_scale(20e3),
             diode_drop_v: 0.7,
             break_current_a: None,
         }

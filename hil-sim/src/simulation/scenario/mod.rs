@@ -2,7 +2,6 @@
 //! reference and duration. Every type here is serde-(de)serializable with unit-carrying
 //! field names, ready for scenario files.
 
-use ema::control::actuator::Actuator;
 use ema::control::law;
 use ema::control::Settings;
 use serde::{Deserialize, Serialize};
@@ -236,57 +235,6 @@ impl Scenario {
             faults: Vec::new(),
             inductance_probes: Vec::new(),
         }
-    }
-
-    /// The product's realistic default at an ISR rate of `rate_hz` on a `supply_v`
-    /// supply: the product's actuator ([`ema::control::actuator::Actuator::PRODUCT`], the
-    /// physical convention) with every setting derived from it (the practical law,
-    /// extended-state observer, one sample of measurement delay, reference shaping, every
-    /// fault detector), judged as [`crate::simulation::actuator::scenario`] judges any actuator
-    /// (converter noise and delay, supply resistance, averaged bridge, nominal plant with
-    /// frozen fringing), on the paper's step from 1 mm to 3 mm from rest without current,
-    /// 0.4 s.
-    ///
-    /// # Errors
-    /// A rate or supply the derivation refuses, by name.
-    #[expect(clippy::cast_possible_truncation)]
-    pub fn product(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
-        let act = Actuator::PRODUCT
-            .with_rate_hz(rate_hz as f32)
-            .with_supply_v(supply_v as f32);
-        let sc = crate::simulation::actuator::scenario(
-            &format!("product-{rate_hz}hz-{supply_v}v"),
-            &act,
-        )?;
-        Ok(sc
-            .with_reference(Reference::Step {
-                from_m: 1e-3,
-                to_m: 3e-3,
-                at_s: 0.0,
-            })
-            .with_initial(Initial {
-                x_m: 1e-3,
-                v_mps: 0.0,
-                i_a: 0.0,
-            })
-            .with_duration_s(0.4))
-    }
-
-    /// The product's actuator at `rate_hz` on `supply_v` on its evaluation sequence
-    /// ([`crate::simulation::actuator::scenario`]: from rest at the open stop, 0.5 mm, then
-    /// 3.5 mm at 0.3 s, 1.5 mm at 0.6 s and 3 mm at 0.9 s; 1.2 s in all).
-    ///
-    /// # Errors
-    /// A rate or supply the derivation refuses, by name.
-    #[expect(clippy::cast_possible_truncation)]
-    pub fn product_sequence(rate_hz: f64, supply_v: f64) -> Result<Self, Error> {
-        let act = Actuator::PRODUCT
-            .with_rate_hz(rate_hz as f32)
-            .with_supply_v(supply_v as f32);
-        crate::simulation::actuator::scenario(
-            &format!("product-sequence-{rate_hz}hz-{supply_v}v"),
-            &act,
-        )
     }
 
     /// ISR rate \[Hz\] (the controller's).

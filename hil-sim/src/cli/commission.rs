@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use crate::analysis::report::{sig, Table};
 use crate::identification::commissioning::{self, Specimen};
 use crate::simulation::actuator;
+use ema::control::actuator::Tolerances;
 
 /// Arguments of `commission`.
 #[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
@@ -76,21 +77,8 @@ struct MechanicsErrors {
     held: f64,
     /// The inductance curve's over the stroke, of the circuit fitted with the holds.
     fitted: f64,
-    /// The tolerances written: spring, mass, friction, surfaces (NaN: no file written).
+    /// The tolerances the file written carries (NaN: no file written).
     tolerance: Tolerances,
-}
-
-/// The relative tolerances a commissioning's file carries.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Tolerances {
-    /// The spring's rate.
-    spring: f64,
-    /// The mass.
-    mass: f64,
-    /// The friction.
-    friction: f64,
-    /// The airgap's surfaces.
-    surface: f64,
 }
 
 /// A row of [`MECHANICS`]: its label, its target in the label's unit (none: reported
@@ -103,30 +91,30 @@ type MechanicsRow = (&'static str, Option<f64>, fn(&MechanicsErrors) -> f64);
 const MECHANICS: [MechanicsRow; 14] = [
     ("spring rate error [%]", None, |e| 100.0 * e.spring),
     ("spring rate tolerance written [%]", None, |e| {
-        100.0 * e.tolerance.spring
+        100.0 * f64::from(e.tolerance.spring)
     }),
     ("spring rate error / its tolerance", Some(1.0), |e| {
-        e.spring / e.tolerance.spring
+        e.spring / f64::from(e.tolerance.spring)
     }),
     ("preload error [% of K x stroke]", None, |e| {
         100.0 * e.preload
     }),
     ("mass error [%]", None, |e| 100.0 * e.mass),
     ("mass tolerance written [%]", None, |e| {
-        100.0 * e.tolerance.mass
+        100.0 * f64::from(e.tolerance.mass)
     }),
     ("mass error / its tolerance", Some(1.0), |e| {
-        e.mass / e.tolerance.mass
+        e.mass / f64::from(e.tolerance.mass)
     }),
     ("friction error [%]", None, |e| 100.0 * e.friction),
     ("friction error [% of the critical damping]", None, |e| {
         100.0 * e.friction_damping
     }),
     ("friction tolerance written [%]", None, |e| {
-        100.0 * e.tolerance.friction
+        100.0 * f64::from(e.tolerance.friction)
     }),
     ("friction error / its tolerance", Some(1.0), |e| {
-        e.friction / e.tolerance.friction
+        e.friction / f64::from(e.tolerance.friction)
     }),
     ("inductance error at the holds [%]", Some(5.0), |e| {
         100.0 * e.held
@@ -137,7 +125,7 @@ const MECHANICS: [MechanicsRow; 14] = [
         |e| 100.0 * e.fitted,
     ),
     ("same, over the surface tolerance written", Some(1.0), |e| {
-        e.fitted / e.tolerance.surface
+        e.fitted / f64::from(e.tolerance.surface)
     }),
 ];
 
@@ -213,17 +201,13 @@ fn mechanics_errors(
         .unwrap_or(f64::NAN);
     let tolerance = file.map_or(
         Tolerances {
-            spring: f64::NAN,
-            mass: f64::NAN,
-            friction: f64::NAN,
-            surface: f64::NAN,
+            surface: f32::NAN,
+            mass: f32::NAN,
+            spring: f32::NAN,
+            friction: f32::NAN,
+            resistance: f32::NAN,
         },
-        |f| Tolerances {
-            spring: f64::from(f.tolerance.spring),
-            mass: f64::from(f.tolerance.mass),
-            friction: f64::from(f.tolerance.friction),
-            surface: f64::from(f.tolerance.surface),
-        },
+        |f| f.tolerance,
     );
     MechanicsErrors {
         spring: m.spring.n_per_m / plant.spring_n_per_m - 1.0,

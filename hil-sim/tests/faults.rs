@@ -189,7 +189,7 @@ const TABLES: [(&str, [Pin; 12]); 7] = [
             Named(50.0),
             Named(550.0),
             Late("current_stuck", 1000.0, 3950.0),
-            Misnamed("model_bounds", 100.0),
+            Named(50.0),
             Named(100.0),
             Named(100.0),
             Named(50.0),

@@ -48,19 +48,35 @@
 //! never moves. So the verdict takes the reading's move since the anchor, and the anchor
 //! is kept while the evidence builds.
 //!
-//! **The fit.** Over the bank's window, the deviation `e` of each measured change from
-//! the nominal prediction `p = k (u - R i)/(1 + R k/2)` (`k = Ts/L_nom`) is fitted by
-//! least squares as `e = a p + b k i`: `a` is an inductance error, `b` a resistance
-//! deficit; the resistance fitted is `R - b`. When `p` and `k i` are proportional (the
-//! law holding on a constant voltage) the two cannot be separated and all of it is
-//! taken as resistance, which is what a short that the law holds looks like.
+//! **The fit.** Over the excursion, the steps from the one that carried the reading out of
+//! the envelope to the confirmation, the deviation `e` of each measured change from the
+//! nominal prediction `p = k (u - R i)/(1 + R k/2)` (`k = Ts/L_nom`) is fitted by least
+//! squares as `e = a p + b k i`: `a` is an inductance error, `b` a resistance deficit; the
+//! resistance fitted is `R - b`. When `p` and `k i` are proportional (the law holding on a
+//! constant voltage) the two cannot be separated and all of it is taken as resistance,
+//! which is what a short that the law holds looks like. The healthy steps before the
+//! excursion are left out: a fit over the whole window would dilute a short that began
+//! late in it by the share of the window before it, and read a resistance within the
+//! bounds.
 //!
 //! **One step.** A single measured change beyond the one-step interval of the corners by
 //! more than `jump_a` plus `gross - 1` times the largest admissible change (no coil even
-//! `gross` times faster than the fastest admissible one makes it), followed by an
-//! admissible step, is a step in the reading, not in the coil: [`Fault::CurrentOffset`],
-//! found one tick later. A step that lands within `open_a` of zero is left to the bank: a
-//! coil that opens drops its current to zero within a period.
+//! `gross` times faster than the fastest admissible one makes it) is a jump. What the next
+//! step does tells a step in the reading from a step in the coil:
+//!
+//! * If the reading stepped by `o` (the jump's excess over the interval's middle, known
+//!   within the interval's half-width), the coil's current is the reading less `o`, and
+//!   each corner `(f, R)` moves it by `f (u - R i) + f R o`: the next step lies in the
+//!   one-step interval shifted by `f R o`, a shift of `o` times the period over the coil's
+//!   time constant. Found there: [`Fault::CurrentOffset`], one tick after the jump. A
+//!   step that lands within `open_a` of zero is left to the bank: a coil that opens drops
+//!   its current to zero within a period.
+//! * A second jump the same way, away from zero: the coil runs on ahead of every
+//!   admissible coil by as much as on the first step, which a dropped resistance does
+//!   and a reading that stepped does not: [`Fault::CoilShort`], one tick after the jump.
+//!   On a coil whose time constant is a few periods this is what keeps the current under
+//!   the trip: each period a short adds `Ts / L (R - R') i`, and the bank's confirmation
+//!   would take two periods more.
 //!
 //! The motional back-EMF `e = s_emf v i mu(g)` (the armature's velocity `v` from the
 //! observer) adds to the applied voltage: `di = k (u + e - R i) / (1 + R k / 2)`. It is
@@ -85,9 +101,9 @@
 //! | position sensor open or shorted | the position code on a rail | the window |
 //! | position sensor stuck | the reading stays in its noise band while the observer's velocity carries the armature on | [`Stuck`] |
 //! | current sensor stuck | the reading stays put while every admissible coil is driven away from it (behind the drive) | the bank |
-//! | current sensor offset | one step beyond any coil, then admissible steps again | the one-step check |
+//! | current sensor offset | one step beyond any coil, then a step admissible for the current under the reading | the one-step check |
 //! | coil open | the reading falls to zero while every admissible coil carries current | the bank |
-//! | coil short | the reading runs ahead of every admissible coil on the same voltage | the bank |
+//! | coil short | the reading runs ahead of every admissible coil on the same voltage | two jumps in a row, or the bank and its fit |
 //! | coil outside its bounds | the reading outside the envelope, by less than `gross` | the bank |
 //! | supply sag or over-voltage | the bus reading | the limits |
 //!
@@ -101,12 +117,13 @@
 //!   before the loop caught it; a frozen reading never moved. When the run-ahead was
 //!   within the noise (a slow coil, a small holding current), the short is named
 //!   [`Fault::CurrentStuck`].
-//! * **a short and a coil below its inductance bound, within a coil time constant**: over
-//!   the first periods the current rises by `Ts / L (u - R i)` per period, and a lower `R`
-//!   and a lower `L` raise it alike; they part only as the current nears its new steady
-//!   state `u / R`. On a coil whose time constant is a few periods (the product's), the
-//!   bank confirms within that time, and its fit, over a window that began before the
-//!   short, reads a resistance within `gross` of the bounds: [`Fault::ModelBounds`].
+//! * **a short and a coil below its inductance bound, while the coil is driven hard**:
+//!   the current then rises by `Ts / L (u - R i)` per period, and a lower `R` and a lower
+//!   `L` raise it alike. They part where the drive is small: holding (`u = R i`), no
+//!   inductance moves the current and a lower resistance does. The fit over the
+//!   excursion separates them when its steps carry both; a short during a move at full
+//!   voltage, where the drive term dominates every step, can read as a coil faster than
+//!   its bounds: [`Fault::ModelBounds`].
 //! * **a current offset and a resistance change, once the step is past**: a reading
 //!   `i + o` on a coil held at `u = R i` looks like a coil of resistance `u / (i + o)`.
 //!   The one-step check names the offset on the step itself; one that steps in over
@@ -294,6 +311,12 @@ pub struct State {
     u_hist: [(f32, bool); 2],
     /// The previous step was beyond the one-step interval by a jump.
     jumped: bool,
+    /// That jump's excess over the middle of the interval: the offset the reading
+    /// stepped by, if it did \[A\].
+    step_a: f32,
+    /// Half the width the excess is known within (the interval's half-width and its
+    /// widening) \[A\].
+    step_tol_a: f32,
     /// Corner bank: the four corner coils' currents since the anchor \[A\].
     bank: [f32; 4],
     /// Measured current at the bank's anchor \[A\].

@@ -84,10 +84,23 @@ impl Config {
         let largest = math::running_max(d_min.abs(), d_max.abs());
         let widen = settings.margin * largest + self.noise_a;
         let (lo, hi) = (d_min - widen, d_max + widen);
-        let offset = st.jumped && !(d_meas < lo || d_meas > hi);
+        let offset =
+            st.jumped && self.admissible_after_step(settings, st, &corners, u, du, i0, d_meas);
         let reach = settings.jump_a + (settings.gross - 1.0) * largest;
-        st.jumped =
+        let jumped =
             (d_meas > hi + reach || d_meas < lo - reach) && inp.i_a.abs() >= settings.open_a;
+        // Two jumps in a row, both away from zero, the second not what the first would
+        // leave behind had the reading stepped: the coil carries ever more current than
+        // any admissible coil (or one `gross` times faster) on this voltage, a resistance
+        // that dropped.
+        let short = !offset
+            && st.jumped
+            && jumped
+            && st.step_a * inp.i_a > 0.0
+            && (d_meas - 0.5 * (d_min + d_max)) * inp.i_a > 0.0;
+        st.jumped = jumped;
+        st.step_a = d_meas - 0.5 * (d_min + d_max);
+        st.step_tol_a = 0.5 * (d_max - d_min) + widen;
         // The nominal prediction and the regressors of the fit.
         let k = self.ts_over_n2 * self.nominal.reluctance_per_h(g);
         let p = gain(k, self.r_nom) * (u - self.r_nom * i0);
@@ -105,7 +118,40 @@ impl Config {
         if offset {
             return Some(Fault::CurrentOffset);
         }
+        if short {
+            return Some(Fault::CoilShort);
+        }
         bank
+    }
+
+    /// The step after a jump, under the hypothesis that the jump was the reading
+    /// stepping by `o` (`st.step_a`, known within `st.step_tol_a`): the coil's current
+    /// before this step was then the reading less `o`, and each corner `(f, R)` moves it
+    /// by `f (u - R (i0 - o)) = f (u - R i0) + f R o`. Whether `d_meas` lies in that
+    /// interval, widened as the one-step interval is. A short makes the reading run on
+    /// ahead by as much as on the jump; an offset shifts the next step by only `f R o`,
+    /// the jump times the period over the coil's time constant.
+    #[expect(clippy::too_many_arguments)]
+    fn admissible_after_step(
+        &self,
+        settings: &Residual,
+        st: &State,
+        corners: &Corners,
+        u: f32,
+        du: f32,
+        i0: f32,
+        d_meas: f32,
+    ) -> bool {
+        let (o_lo, o_hi) = (st.step_a - st.step_tol_a, st.step_a + st.step_tol_a);
+        let (mut d_min, mut d_max) = (f32::INFINITY, f32::NEG_INFINITY);
+        for &(f, res) in corners {
+            // `f res > 0`: the least change takes the least offset.
+            d_min = math::running_min(d_min, f * (u - du - res * (i0 - o_lo)));
+            d_max = math::running_max(d_max, f * (u + du - res * (i0 - o_hi)));
+        }
+        let largest = math::running_max(d_min.abs(), d_max.abs());
+        let widen = settings.margin * largest + self.noise_a;
+        d_meas >= d_min - widen && d_meas <= d_max + widen
     }
 
     /// The corner bank (see the module documentation): advances the four corner coils by
@@ -135,8 +181,6 @@ impl Config {
         }
         st.bank_ticks = st.bank_ticks.saturating_add(1);
         st.bank_emf += emf_a;
-        let [pp, pq, qq, pe, qe] = st.fit;
-        st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for (c, &(f, res)) in st.bank.iter_mut().zip(corners.iter()) {
             *c += f * (u - res * *c);
@@ -162,6 +206,10 @@ impl Config {
             1
         };
         st.bank_side = side;
+        // The fit covers the excursion only, from the step that carried the reading out:
+        // a window that began before a fault would dilute it with healthy steps.
+        let [pp, pq, qq, pe, qe] = if st.bank_out <= 1 { [0.0; 5] } else { st.fit };
+        st.fit = [pp + p * p, pq + p * q, qq + q * q, pe + p * e, qe + q * e];
         if st.bank_out < settings.confirm_ticks {
             return None;
         }

@@ -315,3 +315,72 @@ fn bad_monitor_settings_are_named() {
     assert_eq!(e.value, 1e-5);
     assert_eq!(e.reason, config::Reason::BelowMin { min: TS });
 }
+
+/// Holds `i0` at gap `g` on the voltage a nominal coil needs, the true coil stepping
+/// as `coil` (resistance, from tick `at`), the reading the true current plus `offset`
+/// from tick `at`; the fault found and the tick, from `at`.
+fn hold_then(
+    g: f32,
+    i0: f32,
+    at: u32,
+    resistance_after: f32,
+    offset_after: f32,
+) -> Option<(Fault, u32)> {
+    let c = cfg(0);
+    let mut st = State::default();
+    let u = 0.4 * i0;
+    let mut i = i0;
+    for k in 0..at + 40 {
+        let after = k >= at;
+        let inp = Inputs {
+            x_m: g + (k % 2) as f32 * 1e-6,
+            i_a: i + if after { offset_after } else { 0.0 },
+            r_m: g,
+            target_m: g,
+            v_mps: 0.0,
+        };
+        if let Some(f) = c.check(&mut st, &inp) {
+            return Some((f, k.saturating_sub(at)));
+        }
+        c.record_drive(&mut st, u, true);
+        let r = if k + 1 >= at { resistance_after } else { 0.4 };
+        i = coil_step(g, u, i, r, 1.0);
+    }
+    None
+}
+
+/// At 4 mm the paper's coil has a time constant of two periods, so a reading that
+/// stepped shifts the next admissible step by half the step: the one-step check takes
+/// the coil's current as the reading less the step, and names the offset one tick
+/// after it, wherever in the bank's window it falls.
+#[test]
+fn an_offset_on_a_fast_coil_is_named_from_the_current_under_it() {
+    for at in [3, 7, 12] {
+        assert_eq!(
+            hold_then(4e-3, 4.0, at, 0.4, 2.0),
+            Some((Fault::CurrentOffset, 1)),
+            "step at tick {at}"
+        );
+    }
+}
+
+/// A short late in the bank's window is named a short: the fit covers the excursion
+/// only, not the healthy steps before it (over the whole window it read a resistance
+/// within the bounds). Holding 8 A on the fast coil, the reading jumps twice and the
+/// short is named on the second jump, a tick before the bank's confirmation; on a
+/// slower coil the bank confirms it.
+#[test]
+fn a_short_late_in_the_window_is_named_a_short() {
+    for at in [3, 7, 12] {
+        assert_eq!(
+            hold_then(4e-3, 8.0, at, 0.05, 0.0),
+            Some((Fault::CoilShort, 1)),
+            "fast coil, short at tick {at}"
+        );
+        let found = hold_then(1e-3, 6.0, at, 0.05, 0.0);
+        assert!(
+            matches!(found, Some((Fault::CoilShort, k)) if k <= 4),
+            "slower coil, short at tick {at}: {found:?}"
+        );
+    }
+}

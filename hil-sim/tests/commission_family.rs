@@ -187,6 +187,7 @@ fn a_sensor_at_its_tolerance_s_corners_reads_inside_the_window_and_is_commission
         noise_seed: hil_sim::simulation::hal::Adc::typical().seed,
         current: hil_sim::simulation::hal::ChannelError::default(),
         vbus: hil_sim::simulation::hal::ChannelError::default(),
+        growth_share: 0.0,
     };
     let o = hil_sim::identification::commissioning::run(&a, Some(&corner)).unwrap();
     let Some(Errors {
@@ -443,6 +444,7 @@ fn a_weak_magnet_on_a_resistive_coil_has_its_holds_read_within_two_percent() {
         noise_seed: 144,
         current: hil_sim::simulation::hal::ChannelError::default(),
         vbus: hil_sim::simulation::hal::ChannelError::default(),
+        growth_share: 0.0,
     };
     let report = hil_sim::identification::commissioning::run(&a, Some(&draw))
         .unwrap()

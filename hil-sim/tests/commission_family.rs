@@ -52,8 +52,10 @@ fn every_member_is_commissioned_within_its_targets() {
 /// Seed of the drawn plungers and pilot valves whose inductances are measured.
 const INDUCTANCE_SEED: u64 = 0x1d0c_0000_0000_0017;
 
-/// The inductance at both stops, and the curve the written file models over the stroke,
-/// within 5 % on 16 drawn plungers and 16 drawn pilot valves, each plant with its own converter noise. Their probes are one step of 48 and
+/// The inductance at both stops within 5 % on 16 drawn plungers and 16 drawn pilot
+/// valves, each plant with its own converter noise, and the curve the file written from
+/// the stops models over the stroke within 5 % on those whose surface is constant (the
+/// two-inductance form models no growth; the holds' fit does). Their probes are one step of 48 and
 /// 127 current codes: an estimate that one reading's noise can move (as the instrument
 /// `sum w y(k+1) / sum w y(k)` can) misses on most of them.
 #[test]
@@ -76,6 +78,9 @@ fn small_probe_steps_give_the_inductance_within_five_percent_on_drawn_plants() {
             else {
                 panic!("{name}: commissioning stopped: {:?}; {draw:?}", o.report)
             };
+            // The stops' line models a constant surface only: a growing one's curve is
+            // the holds' fit's.
+            let curve = if draw.growth_share > 0.0 { 0.0 } else { curve };
             worst = [
                 worst[0].max(open.abs()),
                 worst[1].max(closed.abs()),

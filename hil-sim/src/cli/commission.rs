@@ -38,8 +38,9 @@ pub struct Args {
     pub tune: bool,
 }
 
-/// The quantities judged, with their targets.
-const QUANTITIES: [Quantity; 6] = [
+/// The quantities judged, with their targets (the inductance over the stroke is judged
+/// apart: [`STOPS_LINE`]).
+const QUANTITIES: [Quantity; 5] = [
     ("resistance error [%]", 2.0, |e| 100.0 * e.resistance),
     ("inductance error, open stop [%]", 5.0, |e| {
         100.0 * e.inductance_open
@@ -47,13 +48,21 @@ const QUANTITIES: [Quantity; 6] = [
     ("inductance error, closed stop [%]", 5.0, |e| {
         100.0 * e.inductance_closed
     }),
-    (
-        "inductance error over the stroke, stops' line [%]",
-        5.0,
-        |e| 100.0 * e.curve,
-    ),
     ("open stop reading error [codes]", 2.0, |e| e.open_codes),
     ("closed stop reading error [codes]", 2.0, |e| e.closed_codes),
+];
+
+/// The rows of the inductance's error over the stroke of the two-inductance form through
+/// the stops' readings: judged on the specimens whose surface is constant, the only ones
+/// that form models; on those whose surface grows with the gap it cannot (the holds'
+/// fitted circuit models them, judged below), and the error is reported only.
+const STOPS_LINE: [(&str, bool, Option<f64>); 2] = [
+    (
+        "inductance error over the stroke, stops' line, constant surfaces [%]",
+        false,
+        Some(5.0),
+    ),
+    ("same, surfaces growing with the gap [%]", true, None),
 ];
 
 /// A row of [`QUANTITIES`]: its label, its target and its value in the label's unit.
@@ -240,10 +249,11 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     let outcomes: Vec<_> = runs.iter().map(|(o, _, _)| *o).collect();
     let rated = f64::from(a.coil.rated_current_a);
     let mut endings: BTreeMap<&str, usize> = BTreeMap::new();
-    let mut errors: Vec<commissioning::Errors> = Vec::new();
-    for o in &outcomes {
+    // Each commissioned specimen's errors, and whether its surface grows with the gap.
+    let mut errors: Vec<(commissioning::Errors, bool)> = Vec::new();
+    for (k, o) in outcomes.iter().enumerate() {
         match (o.report, o.errors()) {
-            (Ok(_), Some(e)) => errors.push(e),
+            (Ok(_), Some(e)) => errors.push((e, draw(args.seed, k).growth_share > 0.0)),
             (Err(abort), _) => *endings.entry(abort.name()).or_default() += 1,
             (Ok(_), None) => {}
         }
@@ -268,8 +278,16 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         t.push(distribution_row(what, v, target));
     };
     for (what, target, value) in &QUANTITIES {
-        let v = errors.iter().map(|e| value(e).abs()).collect();
+        let v = errors.iter().map(|(e, _)| value(e).abs()).collect();
         row(&mut t, what, v, Some(*target));
+    }
+    for (what, grows, target) in STOPS_LINE {
+        let v = errors
+            .iter()
+            .filter(|(_, g)| *g == grows)
+            .map(|(e, _)| 100.0 * e.curve)
+            .collect();
+        row(&mut t, what, v, target);
     }
     // The faults that ended an attempt at the holds, and those that ended the last.
     let mut attempts_faulted: BTreeMap<&str, usize> = BTreeMap::new();

@@ -58,8 +58,8 @@ pub use probe::{
     HOLD_PROBE_SHARE,
 };
 pub use run::{
-    closed_loop, curve_error, run, run_on, stops_correction, true_plant, ClosedLoop, Errors,
-    Factors, Outcome, Specimen, CLOSED_LOOP_VALIDATION, CURVE_POSITIONS,
+    closed_loop, curve_error, largest_spread, run, run_on, stops_correction, true_plant,
+    ClosedLoop, Errors, Factors, Outcome, Specimen, CLOSED_LOOP_VALIDATION, CURVE_POSITIONS,
 };
 use spring::{corrected, pull};
 pub use spring::{fit_spring, Spring};

@@ -10,7 +10,7 @@ use rand::Rng;
 use super::{measured, Mechanics};
 use crate::simulation::board::scenario;
 use crate::simulation::hal::{self, Adc, CalibrationClass, ChannelError};
-use crate::simulation::plant::Params;
+use crate::simulation::plant::{ForceModel, Params, Surface};
 use crate::simulation::scenario::{Scenario, Sensors, TruePlant};
 use crate::simulation::sim::Stepper;
 use crate::simulation::targets::{Targets, Worst};
@@ -26,6 +26,21 @@ use crate::simulation::Error;
 /// measured, `R = du / di`), and the converter's noise its own realisation: the
 /// inductances come from a few noisy current samples of a decay, so one noise sequence
 /// shared by every draw would give every draw the same error and hide its scatter.
+///
+/// The airgap surfaces' shape is drawn too: half the specimens keep the file's (a
+/// constant surface stays constant), half have poles whose sides grow with the gap by
+/// `k g` more than the file's (fringing), `k` uniform from none to the largest growth
+/// [`largest_spread`] allows: the one at which the drawn surface, at its file's value at
+/// mid-stroke, reaches the file's surface tolerance at a stop (for the product's
+/// 7.5 mm square pole over gaps of 0.5 to 4.5 mm and a 20 % tolerance, `k` up to 0.36,
+/// 20 % more surface at the open stop and 18 % less at the closed one). The file's
+/// controller is designed for every surface within that tolerance over the stroke (its
+/// surface bounds, [`ema::control::model::Plant::physical_bounds`]), so a growth within
+/// it is one the file was written for; a wider one is another actuator. That growth is
+/// also well inside the largest the commissioning's fit considers ([`super::GROWTH_MAX`],
+/// the pull at the open stop vanishing): the product's largest is `q g = 0.24` at its
+/// open stop. A growing surface pulls with `-dL/dg`, its growth included
+/// ([`ForceModel::EnergyConsistent`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Specimen {
     /// Factors on the file's surfaces, resistance, spring rate, mass and friction.
@@ -43,6 +58,9 @@ pub struct Specimen {
     pub current: ChannelError,
     /// The bus channel's.
     pub vbus: ChannelError,
+    /// The airgap surfaces' growth with the gap, as a share of the largest
+    /// ([`largest_spread`]) \[-\]: 0 keeps the file's shape.
+    pub growth_share: f64,
 }
 
 /// The factors a [`Specimen`] puts on the file's values \[-\].
@@ -90,6 +108,12 @@ impl Specimen {
             noise_seed: rng.random(),
             current: CalibrationClass::default().draw_channel(rng),
             vbus: CalibrationClass::default().draw_channel(rng),
+            // Drawn last, so that every draw before keeps its value for a seed.
+            growth_share: if rng.random_bool(0.5) {
+                rng.random_range(0.0..1.0)
+            } else {
+                0.0
+            },
         }
     }
 
@@ -128,9 +152,11 @@ impl Specimen {
         (self.gain_error, self.offset_share * stroke_m / code_m)
     }
 
-    /// `plant` (the file's) drawn.
+    /// `plant` (the file's, whose surface tolerance is `surface_tolerance`) drawn: its
+    /// values by the factors, its surfaces grown by [`Specimen::growth_share`] of the
+    /// largest growth that tolerance allows ([`largest_spread`]).
     #[must_use]
-    pub fn apply(&self, plant: &Params) -> Params {
+    pub fn apply(&self, plant: &Params, surface_tolerance: f64) -> Params {
         let Factors {
             surfaces,
             resistance: r,
@@ -140,6 +166,13 @@ impl Specimen {
         } = self.factors;
         let mut p = plant.clone();
         p.scale_surfaces(surfaces);
+        if self.growth_share > 0.0 {
+            let gaps = p.gap_range_m();
+            for s in &mut p.gaps {
+                *s = grown(*s, self.growth_share, surface_tolerance, gaps);
+            }
+            p.force = ForceModel::EnergyConsistent;
+        }
         p.resistance_ohm *= r;
         p.spring_n_per_m *= k;
         p.mass_kg *= m;
@@ -151,6 +184,51 @@ impl Specimen {
         };
         p
     }
+}
+
+/// The sides `(a, b)` \[m\] and the spread `k` \[-\] of surface `s` seen as a rectangular
+/// pole, `S(g) = (a + k g)(b + k g)` (a constant surface: a square one, `k = 0`).
+fn pole(s: Surface) -> (f64, f64, f64) {
+    match s {
+        Surface::Constant { s_m2 } => (s_m2.sqrt(), s_m2.sqrt(), 0.0),
+        Surface::Rectangular { a_m, b_m, spread } => (a_m, b_m, spread),
+    }
+}
+
+/// Surface `s` with its sides growing by `k g` more, `k` the `share` of
+/// [`largest_spread`]`(s, tolerance, gaps)`, at the same surface at the mid gap:
+/// `S'(g) = (a + k_0 g + k (g - g_mid))(b + k_0 g + k (g - g_mid))`.
+fn grown(s: Surface, share: f64, tolerance: f64, gaps: (f64, f64)) -> Surface {
+    let (a, b, spread) = pole(s);
+    let k = share * largest_spread(s, tolerance, gaps);
+    let mid = 0.5 * (gaps.0 + gaps.1);
+    Surface::Rectangular {
+        a_m: a - k * mid,
+        b_m: b - k * mid,
+        spread: spread + k,
+    }
+}
+
+/// The largest extra growth of the sides of surface `s` with the gap, `k` \[-\], that
+/// keeps the surface, at its own value at the mid gap of `gaps` (smallest, largest
+/// \[m\]), within `1 +- tolerance` times its own at every gap between: the surface
+/// bounds the file's controller is designed for. The bound is reached at a stop: at the
+/// largest gap, `(1 + k d / A)(1 + k d / B) = 1 + tolerance`, at the smallest `(1 - k d /
+/// A)(1 - k d / B) = 1 - tolerance`, `d` half the gaps' span and `A`, `B` the sides
+/// there (with the surface's own growth).
+#[must_use]
+pub fn largest_spread(s: Surface, tolerance: f64, gaps: (f64, f64)) -> f64 {
+    let (a, b, spread) = pole(s);
+    let d = 0.5 * (gaps.1 - gaps.0);
+    // The smaller positive root of `u v k^2 + sign (u + v) k - sign t = 0` for the
+    // sides' reach `u = d / A`, `v = d / B` at gap `g`: the open stop grows (sign +1),
+    // the closed one shrinks (sign -1); `2 t / (p + sqrt(p^2 + sign 4 u v t))`.
+    let root = |g: f64, sign: f64| {
+        let (u, v) = (d / (a + spread * g), d / (b + spread * g));
+        let (p, w) = (u + v, u * v);
+        2.0 * tolerance / (p + (p * p + sign * 4.0 * w * tolerance).sqrt())
+    };
+    root(gaps.1, 1.0).min(root(gaps.0, -1.0))
 }
 
 /// One commissioning and what it is judged against.
@@ -225,7 +303,8 @@ pub fn true_plant(a: &Actuator, draw: Option<&Specimen>) -> Result<Params, Error
 /// The plant of the board scenario `sc`, or `draw`n from it.
 pub(super) fn plant_of(sc: &Scenario, draw: Option<&Specimen>) -> Params {
     let file = sc.plant.resolve(&sc.controller.plant);
-    draw.map_or_else(|| file.clone(), |d| d.apply(&file))
+    let tolerance = f64::from(sc.controller.plant.tolerance.surface);
+    draw.map_or_else(|| file.clone(), |d| d.apply(&file, tolerance))
 }
 
 /// Plants a tuning is validated on in [`closed_loop`] (the tune command's default is 100:

@@ -369,8 +369,9 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The `--tune` line: how many of the tuned `runs` (draw `k` from `seed + k`) meet every
-/// target on their true plant, and which targets the others missed, with their seeds.
+/// The `--tune` lines: how many of the tuned `runs` (draw `k` from `seed + k`) meet every
+/// target on their true plant, and which targets the others missed, with their seeds;
+/// then, for each draw `tune` found no gains for, its diagnosis.
 fn write_tuned(runs: &[Commissioned], seed: u64, out: &mut dyn Write) -> std::io::Result<()> {
     let mut misses: BTreeMap<&str, usize> = BTreeMap::new();
     let mut tuned = 0;
@@ -379,6 +380,8 @@ fn write_tuned(runs: &[Commissioned], seed: u64, out: &mut dyn Write) -> std::io
     let mut growing = (0, 0);
     // The seed of each draw that missed: `--seed S --n 1` runs it again.
     let mut seeds = Vec::new();
+    // `tune`'s diagnosis of each draw it found no gains for.
+    let mut refusals = Vec::new();
     for (k, c) in runs
         .iter()
         .enumerate()
@@ -393,6 +396,9 @@ fn write_tuned(runs: &[Commissioned], seed: u64, out: &mut dyn Write) -> std::io
             growing.1 += usize::from(grows);
         } else {
             seeds.push(seed.wrapping_add(k as u64).to_string());
+        }
+        if let commissioning::ClosedLoop::Untuned(why) = c {
+            refusals.push((seed.wrapping_add(k as u64), why));
         }
         for what in m {
             *misses.entry(what).or_default() += 1;
@@ -410,6 +416,9 @@ fn write_tuned(runs: &[Commissioned], seed: u64, out: &mut dyn Write) -> std::io
             format!("{} (seeds {})", misses.join(", "), seeds.join(", "))
         }
     )?;
+    for (s, why) in refusals {
+        writeln!(out, "not tuned, seed {s}: {why}")?;
+    }
     Ok(())
 }
 

@@ -57,14 +57,14 @@ const TICK_GOAL: u32 = 300;
 /// Budget for one whole tick \[instructions\]: the run fails above it.
 ///
 /// The tick does not meet [`TICK_GOAL`], and this budget does not pretend it does: it
-/// sits about 5 % above the worst tick measured (1448, the practical law on the first
-/// tick of a shaped move, which plans the trajectory), so that any regression fails the
-/// run. The count is of the code the board runs: the firmware profile, built for speed
+/// sits about 5 % above the worst tick measured (1523, the practical law on the first
+/// tick of a shaped move, which plans the trajectory, since the electrical residual
+/// learns the coil's resistance), so that any regression fails the run. The count is of the code the board runs: the firmware profile, built for speed
 /// (opt-level 3; built for size, as the image once had to be to fit 64 KiB, the same tick
 /// took 1625 at most, median 1218 against 1124). The run prints the measured figures per
 /// case and per stage; the goal is out of reach of a single-rate tick: sense, limits, law
 /// and bridge alone take more than 300.
-const TICK_BUDGET: u32 = 1_520;
+const TICK_BUDGET: u32 = 1_600;
 
 #[inline(never)]
 fn whole(cfg: &Config, st: &mut State, b: &mut Bridge, frame: &Frame, setpoint_m: f32) -> Status {

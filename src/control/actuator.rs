@@ -58,6 +58,7 @@
 //! | shortest move | `2.6 / alpha`: the error poles are `-alpha +- j`, and a step of the reference settles to 2 % in about `4 / alpha`; a shorter move would only be rounded off by the loop |
 //! | stuck-sensor band and travel | [`NOISE_ALLOWANCE_CODES`] position codes (4 sigma of the difference of two readings) and [`STUCK_TRAVEL_BANDS`] bands of reference travel: the sensor's own resolution and noise ([`stuck_detector`]) |
 //! | residual noise, jump, open | [`NOISE_ALLOWANCE_CODES`], [`JUMP_ALLOWANCES`] and [`OPEN_ALLOWANCES`] allowances in current codes: the current channel's own resolution and noise ([`residual_detector`]) |
+//! | residual's learned resistance | learned over blocks of [`LEARN_BLOCK_S`] within [`LEARN_TOLERANCE`] plus the current channel's offset class ([`OFFSET_CLASS_CODES`]) over the block's current, for [`LEARN_AGE_S`] |
 //! | residual window, confirmation | half the detection deadline ([`DEADLINE_S`]) in interrupt periods; [`RESIDUAL_CONFIRM_TICKS`] ticks, from the converter's noise |
 //! | tracking error | 1/8 of the stroke, for a quarter of the settling target |
 //! | a move's settling target | 1.5 times the fastest move the limits allow, the coil's current rise included, at least the paper's 0.2 s ([`crate::control::shaping::Config::settling_target_s`]) |
@@ -1044,6 +1045,25 @@ pub const OPEN_ALLOWANCES: f32 = 3.0;
 /// \[-\].
 pub const GROSS: f32 = 2.0;
 
+/// Relative half-width of the resistance the electrical residual learns, before the
+/// converter's offset ([`OFFSET_CLASS_CODES`]) is added to it \[-\]: half of it for what
+/// a block cannot know (the inductance within its bounds, the back-EMF's allowance; a
+/// block with more is not used), half for a coil that warms while it holds (copper
+/// gains 0.39 % per kelvin: 2.6 K in [`LEARN_AGE_S`]) and for the Tustin step's and the
+/// sampled voltage's approximation. The narrower it is, the sooner a frozen reading is
+/// named, and the fewer blocks qualify.
+pub const LEARN_TOLERANCE: f32 = 0.02;
+/// Offset class of the board's converters \[code\]: the most a healthy channel's zero
+/// is off.
+pub const OFFSET_CLASS_CODES: f32 = 2.0;
+/// Length of a block that teaches the residual the coil's resistance \[s\]: 40 to 250
+/// steps at the interrupt rates, so that the converter's noise on the inductive sum (the
+/// block's first and last readings) is spread over as many steps, and short beside a
+/// hold.
+pub const LEARN_BLOCK_S: f32 = 5e-3;
+/// How long a learned resistance holds without a block that confirms it \[s\].
+pub const LEARN_AGE_S: f32 = 0.25;
+
 /// The electrical residual for a current channel at an interrupt rate \[Hz\], in the
 /// channel's own codes (see [`crate::control::supervisor::monitor`]): the noise allowance
 /// [`NOISE_ALLOWANCE_CODES`], a [`RESIDUAL_MARGIN`], [`RESIDUAL_CONFIRM_TICKS`] ticks of
@@ -1060,6 +1080,12 @@ pub fn residual_detector(current: &Channel, rate_hz: f32) -> Residual {
     // At least twice the confirmation; far below u16::MAX at any plausible rate.
     #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let window = math::clamp(half_deadline, least, f32::from(u16::MAX)) as u16;
+    let ticks = |s: f32| {
+        // Clamped to [2, u16::MAX]: the truncation is the intended rounding.
+        #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = math::clamp(libm::roundf(s * rate_hz), 2.0, f32::from(u16::MAX)) as u16;
+        n
+    };
     Residual {
         noise_codes: NOISE_ALLOWANCE_CODES,
         margin: RESIDUAL_MARGIN,
@@ -1068,6 +1094,10 @@ pub fn residual_detector(current: &Channel, rate_hz: f32) -> Residual {
         open_a: OPEN_ALLOWANCES * noise_a,
         gross: GROSS,
         window,
+        learn_ticks: ticks(LEARN_BLOCK_S),
+        learn_tol: LEARN_TOLERANCE,
+        offset_a: OFFSET_CLASS_CODES * current.scale.abs(),
+        learn_age_ticks: ticks(LEARN_AGE_S),
     }
 }
 

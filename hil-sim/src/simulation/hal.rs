@@ -366,11 +366,12 @@ pub struct CalibrationClass {
 pub const CONVERTER_GAIN_CLASS: f64 = 0.005;
 
 impl Default for CalibrationClass {
-    /// +-0.5 % gain ([`CONVERTER_GAIN_CLASS`]), +-2 codes offset.
+    /// +-0.5 % gain ([`CONVERTER_GAIN_CLASS`]), +-2 codes offset (the board's class,
+    /// [`ema::control::actuator::OFFSET_CLASS_CODES`], which the residual allows for).
     fn default() -> Self {
         Self {
             gain_rel: CONVERTER_GAIN_CLASS,
-            offset_code: 2.0,
+            offset_code: f64::from(ema::control::actuator::OFFSET_CLASS_CODES),
         }
     }
 }

@@ -29,6 +29,26 @@
 //! several ticks, the bank sees drives far too weak to show in a single step (a slow
 //! ramp, a coil slightly faster than its bounds), against a noise allowance paid once.
 //!
+//! **The learned resistance.** The bounds `R (1 +- tol)` cover every coil the
+//! actuator's file admits, and a coil that is one of them sits somewhere in them: a
+//! frozen reading on it stays within the bank until the law has driven the real current
+//! by the tolerance away from it. So the bank learns the coil's own resistance, in the
+//! channel's units (a gain error of the converter is in it, as it is in the readings),
+//! over blocks of `learn_ticks` steps on which it found nothing: with Tustin's step,
+//! `u - di / k = R (i0 + i1) / 2` for the true `k = Ts / L`, so over a block
+//! `R = (sum (u + e) - sum di / k) / sum i_mid`. The inductive sum telescopes to the
+//! block's end readings less its first, so on a hold it carries two readings' noise over
+//! some hundred steps. A block counts when what it cannot know, the inductance anywhere
+//! in its bounds (a relative `(k_fast - k_slow) / (k_fast + k_slow)` of the inductive
+//! sum) and the back-EMF's allowance, stays within half of `learn_tol` of the resistive
+//! sum, and the resistance is within the bounds (a coil outside them is the bank's to
+//! name). The corners then take `R_learned (1 +- (learn_tol + o / i_l))`, within the
+//! bounds: `o / i_l` is what the channel's offset class `o` makes of a block learned at
+//! the mean current `i_l` once the current is half of it, and the learned interval holds
+//! only for currents within a factor 2 of `i_l` and for `learn_age_ticks` after the
+//! block (a coil warms). A short or an open coil moves the resistance by far more than
+//! `learn_tol`, and the one-step check and the bank see them sooner against it.
+//!
 //! Which fault it is follows from where the reading went, relative to the direction the
 //! admissible coils were driven (all corners above the anchor: driven up; all below:
 //! driven down; otherwise holding):
@@ -85,9 +105,12 @@
 //! as large as the resistive drop, and left out it reads as a coil outside its bounds.
 //!
 //! What this cannot see: a reading frozen while the coil is driven no harder than the
-//! resistance tolerance explains (`|u - R i| <= tol R |i|`, holding or a slow move)
-//! agrees with an admissible coil; it becomes observable only once the law, acting on the
-//! frozen reading, has driven the real current away from it.
+//! resistance's interval explains (`|u - R i| <= tol R |i|`, holding or a slow move, with
+//! `tol` the learned one's half-width, or the bounds' before a block has taught it)
+//! agrees with an admissible coil; the bank names it only once the law, acting on the
+//! frozen reading, has driven the real current that far from it. A current that drifts
+//! slowly (the position loop re-balancing a held armature) takes milliseconds to get
+//! there after it has left the converter's noise.
 //!
 //! ## What each fault moves, and what cannot be told apart
 //!
@@ -205,6 +228,8 @@ impl Monitors {
             config::at_least("monitors.residual.open_a", residual.open_a, 0.0)?;
             config::at_least("monitors.residual.gross", residual.gross, 1.0)?;
             config::at_least("monitors.residual.window", f32::from(residual.window), 2.0)?;
+            config::within("monitors.residual.learn_tol", residual.learn_tol, 0.0, 0.5)?;
+            config::positive("monitors.residual.offset_a", residual.offset_a)?;
         }
         let tracking_ticks = match &self.tracking {
             Some(t) => {
@@ -331,6 +356,18 @@ pub struct State {
     bank_emf: f32,
     /// Least-squares sums over the bank's window: `p p`, `p q`, `q q`, `p e`, `q e`.
     fit: [f32; 5],
+    /// Sums over the resistance's learning block: voltage with the back-EMF \[V\], the
+    /// inductive voltage `di / k` \[V\], the back-EMF's allowance \[V\], mid-step
+    /// current \[A\].
+    learn: [f32; 4],
+    /// Steps in the learning block.
+    learn_ticks: u16,
+    /// The learned resistance's interval \[ohm\].
+    r_learned: (f32, f32),
+    /// The mean current it was learned at \[A\].
+    i_learned: f32,
+    /// Ticks since it was learned (`u16::MAX`: never).
+    learned_age: u16,
     off_track: u32,
     primed: bool,
 }
@@ -371,6 +408,7 @@ impl Config {
                 r_at_change: inp.r_m,
                 r_prev: inp.r_m,
                 i_prev: inp.i_a,
+                learned_age: u16::MAX,
                 primed: true,
                 ..State::default()
             };

@@ -32,6 +32,15 @@ pub struct Residual {
     pub gross: f32,
     /// Length of the corner bank's window \[tick\] (at least 2).
     pub window: u16,
+    /// Length of a block over which the coil's resistance is learned \[tick\] (0: the
+    /// bank keeps the resistance bounds).
+    pub learn_ticks: u16,
+    /// Relative half-width of the learned resistance's interval \[-\].
+    pub learn_tol: f32,
+    /// The most a healthy channel's zero is off (its offset class) \[A\].
+    pub offset_a: f32,
+    /// How long a learned resistance holds without a block that confirms it \[tick\].
+    pub learn_age_ticks: u16,
 }
 
 /// The four corner coils of a step: gain `k / (1 + R k / 2)` and resistance.
@@ -49,6 +58,8 @@ impl Config {
         if !driving {
             st.jumped = false;
             st.bank_ticks = 0;
+            st.learn_ticks = 0;
+            st.learn = [0.0; 4];
             return None;
         }
         let g = self.convention.gap_m(inp.x_m);
@@ -65,11 +76,12 @@ impl Config {
             self.ts_over_n2 * self.envelope.rho_lo(g),
         );
         let gain = |k: f32, res: f32| k / (1.0 + 0.5 * res * k);
+        let (r_lo, r_hi) = self.resistance_bounds(settings, st, i0);
         let corners = [
-            (gain(k_fast, self.r_lo), self.r_lo),
-            (gain(k_fast, self.r_hi), self.r_hi),
-            (gain(k_slow, self.r_lo), self.r_lo),
-            (gain(k_slow, self.r_hi), self.r_hi),
+            (gain(k_fast, r_lo), r_lo),
+            (gain(k_fast, r_hi), r_hi),
+            (gain(k_slow, r_lo), r_lo),
+            (gain(k_slow, r_hi), r_hi),
         ];
         // Folds from +-inf, never NaN: the one-comparison running extremes are exact.
         // Every gain is positive, so the least change takes the least voltage.
@@ -93,14 +105,14 @@ impl Config {
         // leave behind had the reading stepped: the coil carries ever more current than
         // any admissible coil (or one `gross` times faster) on this voltage, a resistance
         // that dropped.
-        let short = !offset
-            && st.jumped
-            && jumped
-            && st.step_a * inp.i_a > 0.0
-            && (d_meas - 0.5 * (d_min + d_max)) * inp.i_a > 0.0;
+        let excess = d_meas - 0.5 * (d_min + d_max);
+        let short =
+            !offset && st.jumped && jumped && st.step_a * inp.i_a > 0.0 && excess * inp.i_a > 0.0;
         st.jumped = jumped;
-        st.step_a = d_meas - 0.5 * (d_min + d_max);
-        st.step_tol_a = 0.5 * (d_max - d_min) + widen;
+        if jumped {
+            st.step_a = excess;
+            st.step_tol_a = 0.5 * (d_max - d_min) + widen;
+        }
         // The nominal prediction and the regressors of the fit.
         let k = self.ts_over_n2 * self.nominal.reluctance_per_h(g);
         let p = gain(k, self.r_nom) * (u - self.r_nom * i0);
@@ -121,7 +133,91 @@ impl Config {
         if short {
             return Some(Fault::CoilShort);
         }
+        if bank.is_none() {
+            self.learn(
+                settings,
+                st,
+                u,
+                du,
+                d_meas / k,
+                i0 + 0.5 * d_meas,
+                (k_fast, k_slow),
+            );
+        }
         bank
+    }
+
+    /// The resistance interval of the corners at the current `i0`: the learned one,
+    /// while it holds and `i0` is within a factor 2 of the current it was learned at;
+    /// the bounds otherwise.
+    fn resistance_bounds(&self, settings: &Residual, st: &State, i0: f32) -> (f32, f32) {
+        let i = i0.abs();
+        if st.learned_age < settings.learn_age_ticks
+            && i >= 0.5 * st.i_learned
+            && i <= 2.0 * st.i_learned
+        {
+            st.r_learned
+        } else {
+            (self.r_lo, self.r_hi)
+        }
+    }
+
+    /// Learns the coil's resistance over blocks of `learn_ticks` steps on which the bank
+    /// found nothing: with Tustin's step, `u - di / k = R (i0 + i1) / 2` exactly for the
+    /// true `k = Ts / L`, so over a block `R = (sum (u + e) - sum di / k) / sum i_mid`.
+    /// The block counts when what the estimate cannot know stays within half the
+    /// interval's width: the inductance anywhere in its bounds (a relative
+    /// `(k_fast - k_slow) / (k_fast + k_slow)` of the inductive sum) and the back-EMF's
+    /// allowance `du`; when its mean current is above the channel's offset class; and
+    /// when the resistance lies within the bounds (a coil outside them is the bank's to
+    /// name).
+    #[expect(clippy::too_many_arguments)]
+    fn learn(
+        &self,
+        settings: &Residual,
+        st: &mut State,
+        u: f32,
+        du: f32,
+        inductive_v: f32,
+        i_mid: f32,
+        (k_fast, k_slow): (f32, f32),
+    ) {
+        st.learned_age = st.learned_age.saturating_add(1);
+        if settings.learn_ticks == 0 {
+            return;
+        }
+        if st.bank_out != 0 || st.jumped {
+            st.learn = [0.0; 4];
+            st.learn_ticks = 0;
+            return;
+        }
+        let [su, sl, sd, si] = st.learn;
+        st.learn = [su + u, sl + inductive_v, sd + du, si + i_mid];
+        st.learn_ticks = st.learn_ticks.saturating_add(1);
+        if st.learn_ticks < settings.learn_ticks {
+            return;
+        }
+        let [su, sl, sd, si] = st.learn;
+        st.learn = [0.0; 4];
+        st.learn_ticks = 0;
+        let n = f32::from(settings.learn_ticks);
+        let i_mean = si.abs() / n;
+        if i_mean <= settings.offset_a {
+            return;
+        }
+        let r = (su - sl) / si;
+        let unknown = (k_fast - k_slow) / (k_fast + k_slow) * sl.abs() + sd;
+        if unknown <= 0.5 * settings.learn_tol * r * si.abs() && r >= self.r_lo && r <= self.r_hi {
+            // Used down to half the block's current, the channel's offset `o` reads as
+            // `R o / i_mean` more or less resistance.
+            let tol = settings.learn_tol + settings.offset_a / i_mean;
+            st.r_learned = (
+                math::running_max(self.r_lo, r * (1.0 - tol)),
+                math::running_min(self.r_hi, r * (1.0 + tol)),
+            );
+            st.i_learned = i_mean;
+            st.learned_age = 0;
+        }
     }
 
     /// The step after a jump, under the hypothesis that the jump was the reading

@@ -19,10 +19,14 @@
 //!
 //! **The corner bank.** From an anchor (a reading), the four corner coils (`L_lo` or
 //! `L_hi`, `R_lo` or `R_hi`) are advanced tick by tick under the applied voltage. Their
-//! envelope, widened by a relative `margin` of its own extent, by `noise_codes` steps of
-//! the current converter (the allowance follows the calibration: the same board noise is
-//! 8 mA per code on a +-16.5 A channel and 20 mA on a +-40 A one) and by the back-EMF
-//! allowance, holds every admissible coil's current. A reading outside it for
+//! envelope, widened by `noise_codes` steps of the current converter (the allowance
+//! follows the calibration: the same board noise is 8 mA per code on a +-16.5 A channel
+//! and 20 mA on a +-40 A one) and, summed over the periods since the anchor, by the
+//! back-EMF allowance and a relative `margin` of each period's largest admissible change,
+//! holds every admissible coil's current. The margin is paid per period, not on the net
+//! excursion: a law that chatters about the holding voltage swings the coil back and
+//! forth by far more than it moves it, and what the model leaves out adds up over the
+//! swings. A reading outside it for
 //! `confirm_ticks` ticks in a row on the same side is evidence against the coil or the
 //! sensor. The anchor is renewed every `window` ticks, but not while the reading is
 //! outside: evidence that starts late in a window is not thrown away. Summed over
@@ -352,8 +356,9 @@ pub struct State {
     bank_out: u16,
     /// Side of the envelope the reading was last outside on: `1` above, `-1` below.
     bank_side: i8,
-    /// The back-EMF allowance accumulated by the bank since its anchor \[A\].
-    bank_emf: f32,
+    /// The allowances accumulated by the bank since its anchor: the back-EMF's and the
+    /// margin on each period's largest admissible change \[A\].
+    bank_allow: f32,
     /// Least-squares sums over the bank's window: `p p`, `p q`, `q q`, `p e`, `q e`.
     fit: [f32; 5],
     /// Sums over the resistance's learning block: voltage with the back-EMF \[V\], the

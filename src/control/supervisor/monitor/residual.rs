@@ -19,7 +19,7 @@ pub struct Residual {
     /// Absolute widening of the admissible envelope (converter noise), in steps of the
     /// current converter \[code\].
     pub noise_codes: f32,
-    /// Relative widening of the admissible change \[-\].
+    /// Relative widening of the admissible change, per period \[-\].
     pub margin: f32,
     /// Consecutive ticks outside the envelope, on one side, before a fault \[tick\]
     /// (at least 2).
@@ -123,7 +123,7 @@ impl Config {
             inp.i_a,
             i0,
             u,
-            du * gain(k_slow, self.r_lo),
+            du * gain(k_fast, self.r_lo) + settings.margin * largest,
             &corners,
             fit,
         );
@@ -252,7 +252,8 @@ impl Config {
 
     /// The corner bank (see the module documentation): advances the four corner coils by
     /// one period under `u` and compares the reading with their envelope, widened by the
-    /// back-EMF allowance `emf_a` of each period since the anchor; accumulates the fit's
+    /// allowance `allow_a` of each period since the anchor (the back-EMF's and the
+    /// model's margin on the period's largest admissible change); accumulates the fit's
     /// sums with the regressor `q = k i`, the deviation `e` and the prediction `p`.
     #[expect(clippy::too_many_arguments)]
     fn bank(
@@ -262,7 +263,7 @@ impl Config {
         i_a: f32,
         i0: f32,
         u: f32,
-        emf_a: f32,
+        allow_a: f32,
         corners: &Corners,
         (q, e, p): (f32, f32, f32),
     ) -> Option<Fault> {
@@ -272,11 +273,11 @@ impl Config {
             st.bank_ticks = 0;
             st.bank_out = 0;
             st.bank_side = 0;
-            st.bank_emf = 0.0;
+            st.bank_allow = 0.0;
             st.fit = [0.0; 5];
         }
         st.bank_ticks = st.bank_ticks.saturating_add(1);
-        st.bank_emf += emf_a;
+        st.bank_allow += allow_a;
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for (c, &(f, res)) in st.bank.iter_mut().zip(corners.iter()) {
             *c += f * (u - res * *c);
@@ -284,9 +285,10 @@ impl Config {
             hi = math::running_max(hi, *c);
         }
         let anchor = st.bank_anchor;
-        // Neither distance is NaN (the folds skip NaN, the anchor is a finite reading).
-        let half_width = math::running_max((hi - anchor).abs(), (lo - anchor).abs());
-        let widen = settings.margin * half_width + self.noise_a + st.bank_emf;
+        // The margin is paid on every period's change, not on the net excursion: a drive
+        // that swings about the holding voltage moves the coil back and forth, and what
+        // the model leaves out adds up over the swings, not over their net.
+        let widen = self.noise_a + st.bank_allow;
         let side: i8 = if i_a > hi + widen {
             1
         } else if i_a < lo - widen {

@@ -26,8 +26,10 @@ pub const TUNE_VALIDATION: u64 = 1;
 pub const DRAWN_DEVELOPMENT: u64 = 101;
 
 /// Seed of the plants the family is judged on in `RESULTS.md`: no gain, rule or constant
-/// was chosen on it.
-pub const RESULTS: u64 = 3;
+/// was chosen on it. (It was 3 until two of seed 3's healthy plants, replayed, showed why
+/// the electrical residual's margin had to be paid per period: 3 is a development seed
+/// now.)
+pub const RESULTS: u64 = 707;
 
 /// Seed of the drawn actuators `RESULTS.md` judges on. Its actuator 6 was looked at when
 /// the overshoot became the first excursion past the target (and its actuator 16 is the

@@ -58,8 +58,7 @@ impl Config {
         if !driving {
             st.jumped = false;
             st.bank_ticks = 0;
-            st.learn_ticks = 0;
-            st.learn = [0.0; 4];
+            restart_block(st);
             return None;
         }
         let g = self.convention.gap_m(inp.x_m);
@@ -187,8 +186,7 @@ impl Config {
             return;
         }
         if st.bank_out != 0 || st.jumped {
-            st.learn = [0.0; 4];
-            st.learn_ticks = 0;
+            restart_block(st);
             return;
         }
         let [su, sl, sd, si] = st.learn;
@@ -198,8 +196,7 @@ impl Config {
             return;
         }
         let [su, sl, sd, si] = st.learn;
-        st.learn = [0.0; 4];
-        st.learn_ticks = 0;
+        restart_block(st);
         let n = f32::from(settings.learn_ticks);
         let i_mean = si.abs() / n;
         if i_mean <= settings.offset_a {
@@ -274,7 +271,6 @@ impl Config {
             st.bank_out = 0;
             st.bank_side = 0;
             st.bank_allow = 0.0;
-            st.fit = [0.0; 5];
         }
         st.bank_ticks = st.bank_ticks.saturating_add(1);
         st.bank_allow += allow_a;
@@ -362,4 +358,10 @@ impl Config {
         };
         self.r_nom - b
     }
+}
+
+/// Starts the resistance's learning block afresh.
+fn restart_block(st: &mut State) {
+    st.learn = [0.0; 4];
+    st.learn_ticks = 0;
 }

@@ -316,6 +316,18 @@ fn bad_monitor_settings_are_named() {
     assert_eq!(e.reason, config::Reason::BelowMin { min: TS });
 }
 
+/// The detectors' inputs for an armature held at gap `g` (its reading toggling by 1 um
+/// with tick `k`, the reference and the target there) and the current reading `i_a`.
+fn held(g: f32, k: u32, i_a: f32) -> Inputs {
+    Inputs {
+        x_m: g + (k % 2) as f32 * 1e-6,
+        i_a,
+        r_m: g,
+        target_m: g,
+        v_mps: 0.0,
+    }
+}
+
 /// Holds `i0` at gap `g` on the voltage a nominal coil needs, the true coil stepping
 /// as `coil` (resistance, from tick `at`), the reading the true current plus `offset`
 /// from tick `at`; the fault found and the tick, from `at`.
@@ -332,13 +344,7 @@ fn hold_then(
     let mut i = i0;
     for k in 0..at + 40 {
         let after = k >= at;
-        let inp = Inputs {
-            x_m: g + (k % 2) as f32 * 1e-6,
-            i_a: i + if after { offset_after } else { 0.0 },
-            r_m: g,
-            target_m: g,
-            v_mps: 0.0,
-        };
+        let inp = held(g, k, i + if after { offset_after } else { 0.0 });
         if let Some(f) = c.check(&mut st, &inp) {
             return Some((f, k.saturating_sub(at)));
         }
@@ -411,17 +417,12 @@ fn ramp_after_hold(
         } else {
             hold
         };
-        let inp = Inputs {
-            x_m: g + (k % 2) as f32 * 1e-6,
-            i_a: if frozen {
-                i0
-            } else {
-                i + if k % 2 == 0 { code } else { -code }
-            },
-            r_m: g,
-            target_m: g,
-            v_mps: 0.0,
+        let reading = if frozen {
+            i0
+        } else {
+            i + if k % 2 == 0 { code } else { -code }
         };
+        let inp = held(g, k, reading);
         if let Some(f) = c.check(&mut st, &inp) {
             return Some((f, k.saturating_sub(learn)));
         }
@@ -486,13 +487,7 @@ fn chatter_after_hold(loss: f32) -> Option<Fault> {
             -1.5
         };
         let u = hold + swing;
-        let inp = Inputs {
-            x_m: g + (k % 2) as f32 * 1e-6,
-            i_a: i + if k % 3 == 0 { code } else { -code },
-            r_m: g,
-            target_m: g,
-            v_mps: 0.0,
-        };
+        let inp = held(g, k, i + if k % 3 == 0 { code } else { -code });
         if let Some(f) = c.check(&mut st, &inp) {
             return Some(f);
         }

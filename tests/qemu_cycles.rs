@@ -315,10 +315,16 @@ fn measure() -> ! {
                 k
             );
 
+            // Zero volts after a current step that jumped, as the tick applies.
+            let u_v = if cfg.monitors().jumped(&st.monitor) {
+                0.0
+            } else {
+                s.output.u_v
+            };
             let t0 = ctr.now();
             let d = drive(
                 &mut b2,
-                black_box(s.output.u_v),
+                black_box(u_v),
                 black_box(m.vbus_v),
                 cfg.max_modulation(),
             );

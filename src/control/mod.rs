@@ -480,7 +480,18 @@ impl Config {
             status.fault = Some(state.supervisor.trip(fault));
             return self.safe(state, bridge, status);
         }
-        match bridge.apply_clear(status.output.u_v, m.vbus_v, self.max_modulation) {
+        // A reading that jumped beyond every admissible coil is a shorted coil or a
+        // reading that stepped, and the next step tells which. Until it does, the bridge
+        // applies zero volts: a short runs the current on by the same jump every period
+        // the law keeps driving it, and the period until the verdict would carry it
+        // past the trip. On a stepped reading the period costs the coil one period's
+        // decay.
+        let u_v = if self.monitors.jumped(&state.monitor) {
+            0.0
+        } else {
+            status.output.u_v
+        };
+        match bridge.apply_clear(u_v, m.vbus_v, self.max_modulation) {
             Ok(drive) => {
                 status.drive = drive;
                 state.u_prev_v = drive.u_v;

@@ -100,7 +100,11 @@
 //!   and a reading that stepped does not: [`Fault::CoilShort`], one tick after the jump.
 //!   On a coil whose time constant is a few periods this is what keeps the current under
 //!   the trip: each period a short adds `Ts / L (R - R') i`, and the bank's confirmation
-//!   would take two periods more.
+//!   would take two periods more. Between the jump and the verdict the tick applies zero
+//!   volts ([`Config::jumped`]): with the conversion's period of delay the verdict's
+//!   evidence was driven before the jump was seen, so the hold costs it nothing, and the
+//!   short's current stays where the jump found it instead of running on by one more
+//!   jump.
 //!
 //! The motional back-EMF `e = s_emf v i mu(g)` (the armature's velocity `v` from the
 //! observer) adds to the applied voltage: `di = k (u + e - R i) / (1 + R k / 2)`. It is
@@ -426,6 +430,14 @@ impl Config {
             .or_else(|| self.tracking(st, inp));
         st.i_prev = inp.i_a;
         fault
+    }
+
+    /// Whether the last current step jumped beyond every admissible coil, with no verdict
+    /// yet: the next step names a short or a stepped reading (see the module
+    /// documentation), and until then the bridge should not drive the coil.
+    #[inline]
+    pub const fn jumped(&self, st: &State) -> bool {
+        st.jumped
     }
 
     /// Records the average voltage the bridge applied this tick (`driving = false` when

@@ -31,7 +31,8 @@
 //!    refined: their neighbours half a grid step away (`alpha` and the observer a factor
 //!    `2^(1/4)` either way, the margin halfway to the next) are screened, run on the
 //!    corners and validated the same way. An actuator whose best grid point misses a
-//!    target by a few per cent is often met between the points.
+//!    target by a few per cent is often met between the points. When none passes, the
+//!    best of all so far are refined again at half that step ([`REFINE_ROUNDS`]).
 //!
 //! When no candidate passes, [`Report::refusal`] names the target that stays out of
 //! reach on the best candidate, at which rate, and by how much.
@@ -103,15 +104,15 @@ impl Candidate {
     }
 
     /// The refinement's points around this one, itself left out: `alpha` and the observer
-    /// by [`REFINE_FACTOR`] either way, the margin halfway to its neighbours in
-    /// `margins` (sorted), the disturbance model kept.
-    fn neighbours(&self, margins: &[f64]) -> Vec<Candidate> {
+    /// by `factor` either way, the margin halfway to its neighbours in `margins`
+    /// (sorted), the disturbance model kept.
+    fn neighbours(&self, margins: &[f64], factor: f64) -> Vec<Candidate> {
         let below = margins.iter().copied().rfind(|m| *m < self.margin);
         let above = margins.iter().copied().find(|m| *m > self.margin);
         let mut ms = vec![self.margin];
         ms.extend(below.map(|m| round3(0.5 * (m + self.margin))));
         ms.extend(above.map(|m| round3(0.5 * (m + self.margin))));
-        let steps = [1.0 / REFINE_FACTOR, 1.0, REFINE_FACTOR];
+        let steps = [1.0 / factor, 1.0, factor];
         let mut out = Vec::new();
         for a in steps {
             for o in steps {
@@ -544,25 +545,34 @@ pub fn tune(
     };
     let mut evaluations = screen(&candidates)?;
     let mut found = search.worst_case(&mut evaluations)?;
-    if found.is_none() {
-        // The grid's best, refined: the neighbours of the best few between their grid
-        // points.
+    // The best so far, refined: the neighbours of the best few between their points, each
+    // round at half the last round's step.
+    let nyquist_quarter = observer_limit_rad_s(f64::from(act.board.rate_hz));
+    let mut margins = space.margin.clone();
+    let mut factor = REFINE_FACTOR;
+    for _ in 0..REFINE_ROUNDS {
+        if found.is_some() {
+            break;
+        }
         let mut best: Vec<&Evaluation> =
             evaluations.iter().filter(|e| e.score.is_finite()).collect();
         best.sort_by(|a, b| a.score.total_cmp(&b.score));
-        let nyquist_quarter = observer_limit_rad_s(f64::from(act.board.rate_hz));
         let mut refined: Vec<Candidate> = Vec::new();
         for e in best.iter().take(REFINE_SEEDS) {
-            for c in e.candidate.neighbours(&space.margin) {
+            for c in e.candidate.neighbours(&margins, factor) {
                 let known = evaluations.iter().any(|e| e.candidate == c) || refined.contains(&c);
                 if !known && c.observer_rad_s < nyquist_quarter {
                     refined.push(c);
                 }
             }
         }
+        margins.extend(refined.iter().map(|c| c.margin));
+        margins.sort_by(f64::total_cmp);
+        margins.dedup();
         let mut more = screen(&refined)?;
         found = search.worst_case(&mut more)?;
         evaluations.extend(more);
+        factor = factor.sqrt();
     }
     let (chosen, validation) = match found {
         Some((chosen, validation)) => (Some(chosen), validation),
@@ -604,9 +614,15 @@ pub const PROBE_PLANTS: usize = 8;
 /// The grid's best candidates [`tune`] refines when none of the grid passes.
 pub const REFINE_SEEDS: usize = 3;
 
-/// The steps of the refinement around a grid point: `alpha` and the observer a factor
-/// `2^(1/4)` either way (half the grid's step), the margin halfway to its neighbours.
+/// The steps of the refinement's first round around a grid point: `alpha` and the
+/// observer a factor `2^(1/4)` either way (half the grid's step), the margin halfway to
+/// its neighbours.
 const REFINE_FACTOR: f64 = 1.189_207_115_002_721;
+
+/// Rounds of refinement, each at half the step of the one before (`2^(1/4)`, then
+/// `2^(1/8)`): a target missed by a per cent or two on the best point sits closer to it
+/// than half a grid step.
+pub const REFINE_ROUNDS: usize = 2;
 
 /// A candidate chosen, with its validation at every rate.
 type Chosen = (Evaluation, Vec<(Worst, Targets)>);
@@ -1045,7 +1061,7 @@ mod tests {
             margin: 0.35,
             follows_force: true,
         };
-        let n = c.neighbours(&MARGINS);
+        let n = c.neighbours(&MARGINS, REFINE_FACTOR);
         // Three alphas, three observers, three margins, the point itself left out.
         assert_eq!(n.len(), 26, "{n:?}");
         assert!(!n.contains(&c));
@@ -1067,7 +1083,7 @@ mod tests {
         assert!(n.iter().all(|c| c.follows_force));
         // At the end of the margins, no step beyond them.
         let top = Candidate { margin: 0.85, ..c };
-        let n = top.neighbours(&MARGINS);
+        let n = top.neighbours(&MARGINS, REFINE_FACTOR);
         assert_eq!(n.len(), 17, "{n:?}");
         assert!(n.iter().all(|c| c.margin <= 0.85));
     }

@@ -438,22 +438,25 @@ fn tune_writes_a_tuned_file_that_loads() {
     );
 }
 
-/// An actuator the law cannot be tuned for (1.19 kg on a 7370 N/m spring with little
-/// friction: a corner plant overshoots at the best gains) is refused: no tuned file, and the diagnosis names the
-/// target missed, the rate and by how much.
+/// An actuator the law cannot be tuned for is refused: no tuned file, and the diagnosis
+/// names the target missed, the rate and by how much. The actuator is one of the
+/// development seed's drawn ones (`hil_sim::analysis::seeds`), index 6: 0.87 kg on a
+/// weak spring with a 5.7 V supply at 11.4 kHz, on which a corner plant overshoots by
+/// more than a tenth of its target at the best gains, after both rounds of refinement.
+/// (The hand-written `hil-sim/actuators/magnet-1kg-underdamped.toml` misses by less:
+/// the refinement meets it at 20 kHz and its own rate with this test's four validation
+/// plants, and only `tune`'s default rates refuse it.)
 #[test]
 fn tune_refuses_an_actuator_it_cannot_tune_and_names_the_target() {
     let out = dir("tune-refused");
     std::fs::create_dir_all(&out).unwrap();
-    let file = out.join("magnet-1kg-underdamped.toml");
-    std::fs::write(
-        &file,
-        include_str!("../actuators/magnet-1kg-underdamped.toml"),
-    )
-    .unwrap();
+    let d =
+        hil_sim::analysis::drawn::draw_one(hil_sim::analysis::seeds::DRAWN_DEVELOPMENT, 6).unwrap();
+    let file = out.join(format!("{}.toml", d.name()));
+    std::fs::write(&file, d.text().unwrap()).unwrap();
     let (o, printed) = tune_at_20_khz(&file, &out);
     assert_eq!(o.tuned, None, "{printed}");
-    assert!(!out.join("magnet-1kg-underdamped.tuned.toml").exists());
+    assert!(!out.join(format!("{}.tuned.toml", d.name())).exists());
     let r = o
         .report
         .refusal

@@ -315,12 +315,8 @@ fn measure() -> ! {
                 k
             );
 
-            // Zero volts after a current step that jumped, as the tick applies.
-            let u_v = if cfg.monitors().jumped(&st.monitor) {
-                0.0
-            } else {
-                s.output.u_v
-            };
+            // The voltage the tick lets the bridge apply (zero after a current jump).
+            let u_v = cfg.monitors().drive_v(&st.monitor, s.output.u_v);
             let t0 = ctr.now();
             let d = drive(
                 &mut b2,

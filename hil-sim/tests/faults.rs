@@ -404,8 +404,8 @@ fn a_frozen_reading_is_observable_once_its_quantity_moves() {
 /// over-voltage, missed deadlines, a tick that stops, a coil short) named as expected
 /// within the deadline every time, the current at or under the trip (without the zero
 /// volts the tick applies between a jump and its verdict, a short here runs past the
-/// trip). The frozen readings and the offset are reported, not
-/// required, in `RESULTS.md` (`hil-sim faults NAME --random 200`).
+/// trip). The frozen readings and the offset are reported, not required, in
+/// `RESULTS.md` (`hil-sim faults NAME --random 200`).
 #[test]
 fn faults_at_random_instants_are_named_on_drawn_plants() {
     const SEED: u64 = 0xfa17_0000_0000_0015;

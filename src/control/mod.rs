@@ -486,11 +486,7 @@ impl Config {
         // the law keeps driving it, and the period until the verdict would carry it
         // past the trip. On a stepped reading the period costs the coil one period's
         // decay.
-        let u_v = if self.monitors.jumped(&state.monitor) {
-            0.0
-        } else {
-            status.output.u_v
-        };
+        let u_v = self.monitors.drive_v(&state.monitor, status.output.u_v);
         match bridge.apply_clear(u_v, m.vbus_v, self.max_modulation) {
             Ok(drive) => {
                 status.drive = drive;

@@ -101,7 +101,7 @@
 //!   On a coil whose time constant is a few periods this is what keeps the current under
 //!   the trip: each period a short adds `Ts / L (R - R') i`, and the bank's confirmation
 //!   would take two periods more. Between the jump and the verdict the tick applies zero
-//!   volts ([`Config::jumped`]): with the conversion's period of delay the verdict's
+//!   volts ([`Config::drive_v`]): with the conversion's period of delay the verdict's
 //!   evidence was driven before the jump was seen, so the hold costs it nothing, and the
 //!   short's current stays where the jump found it instead of running on by one more
 //!   jump.
@@ -432,12 +432,16 @@ impl Config {
         fault
     }
 
-    /// Whether the last current step jumped beyond every admissible coil, with no verdict
-    /// yet: the next step names a short or a stepped reading (see the module
-    /// documentation), and until then the bridge should not drive the coil.
+    /// The voltage the bridge may apply for the law's `u_v`: zero while the last current
+    /// step jumped beyond every admissible coil with no verdict yet (the next step names
+    /// a short or a stepped reading, see the module documentation), `u_v` otherwise.
     #[inline]
-    pub const fn jumped(&self, st: &State) -> bool {
-        st.jumped
+    pub fn drive_v(&self, st: &State, u_v: f32) -> f32 {
+        if st.jumped {
+            0.0
+        } else {
+            u_v
+        }
     }
 
     /// Records the average voltage the bridge applied this tick (`driving = false` when

@@ -34,7 +34,7 @@ use ema::control::supervisor::Fault;
 use crate::simulation::plant::Surface;
 use crate::simulation::scenario::Scenario;
 use crate::simulation::scenario::{Injected, Sensors, TruePlant, Uncertainty};
-use crate::simulation::sim::run;
+use crate::simulation::sim::with_run;
 use crate::simulation::Error;
 
 /// Detection deadline \[s\] (20 ticks at 20 kHz).
@@ -293,30 +293,31 @@ fn planned_move_s(settings: &ema::control::Settings, x0_m: f64, x1_m: f64) -> f6
 /// # Errors
 /// A scenario that does not validate.
 pub fn evaluate(case: &Case) -> Result<Outcome, Error> {
-    let r = run(&case.scenario)?;
-    let first = r
-        .samples
-        .iter()
-        .position(|s| s.fault.is_some())
-        .and_then(|k| r.samples.get(k).map(|s| (k, s)));
-    let (fault, detected_after_s, coasting) = match first {
-        Some((k, s)) => (
-            s.fault,
-            Some(s.t_s - case.at_s),
-            r.samples.iter().skip(k).all(|s| s.mode == Mode::Coast),
-        ),
-        None => (None, None, true),
-    };
-    Ok(Outcome {
-        name: case.name.to_owned(),
-        what: case.what.to_owned(),
-        expected: case.expected.name().to_owned(),
-        fault: fault.map(|f| f.name().to_owned()),
-        detected_after_s,
-        peak_current_a: r.metrics.i_peak_a,
-        trip_a: f64::from(case.scenario.controller.limits.current_trip_a),
-        coasting,
-        observable_after_s: observable_after_s(case, &r),
+    with_run(&case.scenario, |r| {
+        let first = r
+            .samples
+            .iter()
+            .position(|s| s.fault.is_some())
+            .and_then(|k| r.samples.get(k).map(|s| (k, s)));
+        let (fault, detected_after_s, coasting) = match first {
+            Some((k, s)) => (
+                s.fault,
+                Some(s.t_s - case.at_s),
+                r.samples.iter().skip(k).all(|s| s.mode == Mode::Coast),
+            ),
+            None => (None, None, true),
+        };
+        Outcome {
+            name: case.name.to_owned(),
+            what: case.what.to_owned(),
+            expected: case.expected.name().to_owned(),
+            fault: fault.map(|f| f.name().to_owned()),
+            detected_after_s,
+            peak_current_a: r.metrics.i_peak_a,
+            trip_a: f64::from(case.scenario.controller.limits.current_trip_a),
+            coasting,
+            observable_after_s: observable_after_s(case, r),
+        }
     })
 }
 

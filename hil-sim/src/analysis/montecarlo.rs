@@ -16,7 +16,7 @@ use ema::control::bridge::Mode;
 pub use crate::simulation::draw::{Draw, SensorDraw};
 use crate::simulation::hal::{sensor_position_error_m, Adc, CalibrationClass};
 use crate::simulation::scenario::{Scenario, Sensors, TruePlant, Uncertainty};
-use crate::simulation::sim::run;
+use crate::simulation::sim::with_run;
 use crate::simulation::targets::worse;
 use crate::simulation::Error;
 
@@ -169,7 +169,7 @@ pub fn montecarlo_opts(
         .into_par_iter()
         .map(|index| {
             let (sc, adc) = options.scenario(scenario, seed, index)?;
-            let r = run(&sc).map(|r| {
+            let r = with_run(&sc, |r| {
                 let coasting_after_fault = r
                     .samples
                     .iter()
@@ -204,8 +204,8 @@ pub fn montecarlo_opts(
                 Draw {
                     index,
                     seed: draw_seed(seed, index),
-                    plant: r.plant,
-                    metrics: r.metrics,
+                    plant: r.plant.clone(),
+                    metrics: r.metrics.clone(),
                     coasting_after_fault,
                     sensor,
                 }

@@ -525,7 +525,7 @@ pub fn tune(
                 }
                 let sc = condition(name, act, c, own_rate, substeps)?;
                 let t = Targets::for_scenario(&sc);
-                let m = crate::simulation::sim::run(&sc)?.metrics;
+                let m = crate::simulation::sim::with_run(&sc, |r| r.metrics.clone())?;
                 let (score, what) = judge(&Worst::of([&m], &t), &t);
                 e.screen = score;
                 e.limiting = Some((what.into(), own_rate));
@@ -666,10 +666,10 @@ impl Search<'_> {
                         .par_iter()
                         .filter_map(|&k| self.plants.get(k).map(|p| (k, p)))
                         .map(|(k, p)| {
-                            crate::simulation::sim::run(
+                            crate::simulation::sim::with_run(
                                 &sc.clone().with_plant(TruePlant::Given(p.clone())),
+                                |r| (k, r.metrics.clone()),
                             )
-                            .map(|r| (k, r.metrics))
                         })
                         .collect::<Result<Vec<_>, _>>()
                 };

@@ -275,42 +275,120 @@ pub fn compute(
             })
         })
         .collect();
+    // The whole run's figures, in one pass (see [`Pass`]).
+    let (mut first_fault, mut i_peak_a, mut u_cmd_peak_v, mut energy_j) = (None, 0.0, 0.0, -0.0);
+    for s in trace {
+        if first_fault.is_none() && s.fault.is_some() {
+            first_fault = Some(FaultAt {
+                t_s: s.t_s,
+                fault: s.fault,
+            });
+        }
+        i_peak_a = worse(i_peak_a, s.i_abs_max_a);
+        u_cmd_peak_v = worse(u_cmd_peak_v, s.u_cmd_v.abs());
+        energy_j += s.energy_j;
+    }
     Metrics {
         segments,
         errors_at,
         bounds,
-        first_fault: trace.iter().find(|s| s.fault.is_some()).map(|s| FaultAt {
-            t_s: s.t_s,
-            fault: s.fault,
-        }),
-        i_peak_a: trace.iter().map(|s| s.i_abs_max_a).fold(0.0, worse),
-        u_cmd_peak_v: trace.iter().map(|s| s.u_cmd_v.abs()).fold(0.0, worse),
-        energy_j: trace.iter().map(|s| s.energy_j).sum(),
+        first_fault,
+        i_peak_a,
+        u_cmd_peak_v,
+        energy_j,
         landing_speed_mps: impacts.iter().map(|i| i.impact.speed_mps).reduce(worse),
         impacts: impacts.len(),
     }
 }
 
-/// The overshoot of a step of `step` to `to_m` over the segment's samples `seg` \[%\]: the
-/// largest distance past the target during the first excursion past it (see the module
-/// documentation); NaN when a position is not a number.
+/// What one pass over a segment's samples gathers (a long run's record is tens of
+/// megabytes: one pass instead of one per metric). Each field is computed as its
+/// definition in the module documentation says, in the samples' order, so the figures are
+/// the same bits as one pass per metric.
+struct Pass {
+    /// Index of the last sample outside the settling band.
+    last_outside: Option<usize>,
+    /// Where the first excursion past the target is: not yet, in it, or over.
+    excursion: Excursion,
+    /// The largest distance past the target in the first excursion \[%\].
+    overshoot_pct: f64,
+    /// Any position that is not a number.
+    nan_position: bool,
+    u_sq_sum: f64,
+    i_peak_a: f64,
+    u_peak_v: f64,
+    u_cmd_peak_v: f64,
+    saturated: usize,
+    faulted: usize,
+    energy_j: f64,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Excursion {
+    Before,
+    In,
+    Over,
+}
+
+impl Pass {
+    fn over(seg: &[Sample], to_m: f64, step: f64, band: f64) -> Self {
+        // `Iterator::sum` of f64 starts at -0.0, so these do too.
+        let mut p = Self {
+            last_outside: None,
+            excursion: Excursion::Before,
+            overshoot_pct: 0.0,
+            nan_position: false,
+            u_sq_sum: -0.0,
+            i_peak_a: 0.0,
+            u_peak_v: 0.0,
+            u_cmd_peak_v: 0.0,
+            saturated: 0,
+            faulted: 0,
+            energy_j: -0.0,
+        };
+        let past = |s: &Sample| 100.0 * (s.x_m - to_m) * step.signum() / step.abs();
+        for (k, s) in seg.iter().enumerate() {
+            if (s.x_m - to_m).abs() > band {
+                p.last_outside = Some(k);
+            }
+            p.nan_position |= s.x_m.is_nan();
+            if step != 0.0 && p.excursion != Excursion::Over {
+                let d = past(s);
+                if d > 0.0 {
+                    p.excursion = Excursion::In;
+                    p.overshoot_pct = worse(p.overshoot_pct, d);
+                } else if p.excursion == Excursion::In {
+                    p.excursion = Excursion::Over;
+                }
+            }
+            p.u_sq_sum += s.u_rms_v * s.u_rms_v;
+            p.i_peak_a = worse(p.i_peak_a, s.i_abs_max_a);
+            p.u_peak_v = worse(p.u_peak_v, s.u_abs_max_v);
+            p.u_cmd_peak_v = worse(p.u_cmd_peak_v, s.u_cmd_v.abs());
+            p.saturated += usize::from(s.u_cmd_v.abs() > s.vbus_v);
+            p.faulted += usize::from(s.fault.is_some());
+            p.energy_j += s.energy_j;
+        }
+        p
+    }
+
+    /// The overshoot \[%\]: 0 for a zero step, NaN when a position is not a number.
+    fn overshoot_pct(&self, step: f64) -> f64 {
+        if step == 0.0 {
+            0.0
+        } else if self.nan_position {
+            f64::NAN
+        } else {
+            self.overshoot_pct
+        }
+    }
+}
+
+/// The overshoot of a step of `step` to `to_m` over the segment's samples `seg` \[%\] (see
+/// [`Pass`]).
+#[cfg(test)]
 fn overshoot_pct(seg: &[Sample], to_m: f64, step: f64) -> f64 {
-    if step == 0.0 {
-        return 0.0;
-    }
-    if seg.iter().any(|s| s.x_m.is_nan()) {
-        return f64::NAN;
-    }
-    let past = |s: &Sample| 100.0 * (s.x_m - to_m) * step.signum() / step.abs();
-    let Some(first) = seg.iter().position(|s| past(s) > 0.0) else {
-        return 0.0;
-    };
-    seg.get(first..)
-        .unwrap_or_default()
-        .iter()
-        .map(past)
-        .take_while(|&p| p > 0.0)
-        .fold(0.0, worse)
+    Pass::over(seg, to_m, step, 0.0).overshoot_pct(step)
 }
 
 fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[ImpactAt]) -> Segment {
@@ -319,16 +397,16 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
     let seg = trace.get(a..b).unwrap_or_default();
     let step = spec.to_m - spec.from_m;
     let band = 0.02 * step.abs();
+    let pass = Pass::over(seg, spec.to_m, step, band);
 
     let settling_time_s = if step == 0.0 || seg.is_empty() {
         None
     } else {
-        match seg.iter().rposition(|s| (s.x_m - spec.to_m).abs() > band) {
+        match pass.last_outside {
             None => Some(0.0),
             Some(j) => seg.get(j + 1).map(|s| s.t_s - spec.start_s),
         }
     };
-    let overshoot_pct = overshoot_pct(seg, spec.to_m, step);
 
     let w0 = trace
         .partition_point(|s| s.t_s < spec.end_s - window_s)
@@ -355,12 +433,12 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
     let u_rms_v = if seg.is_empty() {
         f64::NAN
     } else {
-        (seg.iter().map(|s| s.u_rms_v * s.u_rms_v).sum::<f64>() / seg.len() as f64).sqrt()
+        (pass.u_sq_sum / seg.len() as f64).sqrt()
     };
     Segment {
         spec,
         settling_time_s,
-        overshoot_pct,
+        overshoot_pct: pass.overshoot_pct(step),
         steady_error_um: err * 1e6,
         steady_error_pct: 100.0 * err / spec.to_m.abs(),
         steady_current_a: i_mean,
@@ -370,13 +448,13 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
             i_max - i_min
         },
         ripple_rms_a,
-        i_peak_a: seg.iter().map(|s| s.i_abs_max_a).fold(0.0, worse),
-        u_peak_v: seg.iter().map(|s| s.u_abs_max_v).fold(0.0, worse),
+        i_peak_a: pass.i_peak_a,
+        u_peak_v: pass.u_peak_v,
         u_rms_v,
-        u_cmd_peak_v: seg.iter().map(|s| s.u_cmd_v.abs()).fold(0.0, worse),
-        saturated_samples: seg.iter().filter(|s| s.u_cmd_v.abs() > s.vbus_v).count(),
-        faulted_samples: seg.iter().filter(|s| s.fault.is_some()).count(),
-        energy_j: seg.iter().map(|s| s.energy_j).sum(),
+        u_cmd_peak_v: pass.u_cmd_peak_v,
+        saturated_samples: pass.saturated,
+        faulted_samples: pass.faulted,
+        energy_j: pass.energy_j,
         landing_speed_mps: impacts
             .iter()
             .filter(|i| i.t_s >= spec.start_s && i.t_s < spec.end_s)

@@ -81,7 +81,38 @@ pub struct Recording {
 /// # Errors
 /// As [`run`]; recording needs converter codes ([`Sensors::Adc`]) and no missed
 /// deadlines (a trace has one record per tick).
-pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> Result<Run, Error> {
+pub fn run_with(scenario: &Scenario, recording: Option<&mut Recording>) -> Result<Run, Error> {
+    simulate(scenario, recording, Vec::new())
+}
+
+std::thread_local! {
+    /// The samples' buffer [`with_run`] lends each run on this thread: a long run's record
+    /// is tens of megabytes, which a fresh allocation per run would map, fault in page by
+    /// page and unmap again.
+    static SAMPLES: core::cell::Cell<Vec<Sample>> = const { core::cell::Cell::new(Vec::new()) };
+}
+
+/// Runs a scenario, as [`run`], and hands the run to `f`, which only borrows it: its
+/// samples live in a buffer this thread keeps for the next run. The same bits as [`run`];
+/// what a search or a Monte Carlo runs thousands of times.
+///
+/// # Errors
+/// As [`run`].
+pub fn with_run<T>(scenario: &Scenario, f: impl FnOnce(&Run) -> T) -> Result<T, Error> {
+    let run = simulate(scenario, None, SAMPLES.take())?;
+    let out = f(&run);
+    let mut samples = run.samples;
+    samples.clear();
+    SAMPLES.set(samples);
+    Ok(out)
+}
+
+/// [`run_with`] into `samples`, cleared first (its capacity is kept).
+fn simulate(
+    scenario: &Scenario,
+    mut recording: Option<&mut Recording>,
+    mut samples: Vec<Sample>,
+) -> Result<Run, Error> {
     if recording.is_some() {
         if let Sensors::Ideal = scenario.sensors {
             return Err(Error::param(
@@ -120,7 +151,8 @@ pub fn run_with(scenario: &Scenario, mut recording: Option<&mut Recording>) -> R
         Sensors::Ideal => None,
         Sensors::Adc(adc) => Some(adc.start(config.sense())),
     };
-    let mut samples = Vec::with_capacity(n);
+    samples.clear();
+    samples.reserve_exact(n);
     let mut faults = scenario.faults.clone();
     faults.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
     let mut faults = faults.into_iter().peekable();

@@ -22,7 +22,9 @@
 //!    first, on the 49 corner plants of the uncertainty set ([`corners`]) at every rate, each judged by the actuator's targets
 //!    ([`crate::simulation::targets::Targets::for_scenario`]). The score is the largest
 //!    `worst / target` over the metrics, the plants and the rates (the ripple against
-//!    [`RIPPLE_RESERVE`] of its target); a candidate stops at its first miss.
+//!    [`RIPPLE_RESERVE`] of its target); a candidate stops at its first miss. A run in
+//!    which a fault latches misses whatever follows, so it stops at the fault
+//!    ([`crate::simulation::sim::Until::Fault`]).
 //! 5. **Validation**: a candidate that meets every target on every corner then runs on a
 //!    Monte Carlo sample of drawn plants at every rate (interior plants and other noise
 //!    realisations find what the corners miss). The first candidate, in screening order,
@@ -47,6 +49,7 @@ use crate::analysis::lyapunov::{Bound, Problem};
 use crate::analysis::montecarlo::montecarlo_with;
 use crate::simulation::plant::{ForceModel, Params, Surface};
 use crate::simulation::scenario::{Scenario, TruePlant};
+use crate::simulation::sim::{with_run_until, Until};
 use crate::simulation::targets::{Targets, Worst};
 use crate::simulation::Error;
 
@@ -525,7 +528,7 @@ pub fn tune(
                 }
                 let sc = condition(name, act, c, own_rate, substeps)?;
                 let t = Targets::for_scenario(&sc);
-                let m = crate::simulation::sim::with_run(&sc, |r| r.metrics.clone())?;
+                let m = with_run_until(&sc, Until::Fault, |r| r.metrics.clone())?;
                 let (score, what) = judge(&Worst::of([&m], &t), &t);
                 e.screen = score;
                 e.limiting = Some((what.into(), own_rate));
@@ -666,8 +669,9 @@ impl Search<'_> {
                         .par_iter()
                         .filter_map(|&k| self.plants.get(k).map(|p| (k, p)))
                         .map(|(k, p)| {
-                            crate::simulation::sim::with_run(
+                            with_run_until(
                                 &sc.clone().with_plant(TruePlant::Given(p.clone())),
+                                Until::Fault,
                                 |r| (k, r.metrics.clone()),
                             )
                         })

@@ -82,7 +82,7 @@ pub struct Recording {
 /// As [`run`]; recording needs converter codes ([`Sensors::Adc`]) and no missed
 /// deadlines (a trace has one record per tick).
 pub fn run_with(scenario: &Scenario, recording: Option<&mut Recording>) -> Result<Run, Error> {
-    simulate(scenario, recording, Vec::new())
+    simulate(scenario, recording, Vec::new(), Until::End)
 }
 
 std::thread_local! {
@@ -99,7 +99,30 @@ std::thread_local! {
 /// # Errors
 /// As [`run`].
 pub fn with_run<T>(scenario: &Scenario, f: impl FnOnce(&Run) -> T) -> Result<T, Error> {
-    let run = simulate(scenario, None, SAMPLES.take())?;
+    with_run_until(scenario, Until::End, f)
+}
+
+/// Where a run stops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Until {
+    /// At the scenario's end.
+    End,
+    /// At the scenario's end or at the tick a fault latches, whichever is first: for a
+    /// search that rejects any run in which a fault latched, whatever the rest of it
+    /// does. The run's metrics then cover only the ticks up to the fault.
+    Fault,
+}
+
+/// [`with_run`], stopped as `until` says.
+///
+/// # Errors
+/// As [`run`].
+pub fn with_run_until<T>(
+    scenario: &Scenario,
+    until: Until,
+    f: impl FnOnce(&Run) -> T,
+) -> Result<T, Error> {
+    let run = simulate(scenario, None, SAMPLES.take(), until)?;
     let out = f(&run);
     let mut samples = run.samples;
     samples.clear();
@@ -112,6 +135,7 @@ fn simulate(
     scenario: &Scenario,
     mut recording: Option<&mut Recording>,
     mut samples: Vec<Sample>,
+    until: Until,
 ) -> Result<Run, Error> {
     if recording.is_some() {
         if let Sensors::Ideal = scenario.sensors {
@@ -278,6 +302,9 @@ fn simulate(
             i_abs_max_a: period.i_abs_max_a,
             energy_j: period.energy_j,
         });
+        if until == Until::Fault && status.fault.is_some() {
+            break;
+        }
     }
     let (plant, impacts) = stepper.finish();
     let metrics = metrics::compute(scenario, bounds, &samples, &impacts);
@@ -813,6 +840,31 @@ mod tests {
         assert!(m.first_fault.is_some());
         let back: Metrics = toml::from_str(&toml::to_string(&m).unwrap()).unwrap();
         assert_eq!(back, m);
+    }
+
+    /// A run stopped at the fault is the full run up to the tick the fault latched, bit
+    /// for bit, and ends there; without a fault it is the full run.
+    #[test]
+    fn a_run_until_the_fault_is_the_full_run_up_to_it() {
+        use crate::simulation::scenario::{Injected, Injection, Scenario};
+        let mut sc = Scenario::product(20e3, 24.0).unwrap().with_duration_s(0.05);
+        let healthy = run(&sc).unwrap();
+        let same = with_run_until(&sc, Until::Fault, |r| r.samples.clone()).unwrap();
+        assert_eq!(same, healthy.samples);
+        sc.faults.push(Injection {
+            at_s: 0.02,
+            fault: Injected::CoilOpen,
+        });
+        let full = run(&sc).unwrap();
+        let k = full.samples.iter().position(|s| s.fault.is_some()).unwrap();
+        assert!(k + 1 < full.samples.len(), "the fault latched at the end");
+        let (samples, first) = with_run_until(&sc, Until::Fault, |r| {
+            (r.samples.clone(), r.metrics.first_fault)
+        })
+        .unwrap();
+        assert_eq!(samples.len(), k + 1);
+        assert_eq!(samples.as_slice(), full.samples.get(..=k).unwrap());
+        assert_eq!(first, full.metrics.first_fault);
     }
 
     #[test]

@@ -834,11 +834,7 @@ impl Refusal {
             (Stage::Theorem, _) => "Theorem 1 fails".into(),
             (Stage::Validation, _) => format!("{} on drawn plants at {at}", self.what),
             (_, Some(d)) if self.what == "fault" => format!("`{d}` fires at {at}{corner}"),
-            _ => format!(
-                "{} x{} at {at}{corner}",
-                self.what,
-                crate::analysis::report::sig(self.by, 3)
-            ),
+            _ => format!("{} x{} at {at}{corner}", self.what, over_one(self.by, 3)),
         }
     }
 }
@@ -900,7 +896,7 @@ impl core::fmt::Display for Refusal {
         write!(
             f,
             "no candidate meets every target {}; the best (alpha {} 1/s, observer {} rad/s, \
-             margin {}) misses `{what}` at {} kHz by a factor {:.3}: {why}",
+             margin {}) misses `{what}` at {} kHz by a factor {}: {why}",
             if self.stage == Stage::Corners {
                 "on every corner plant at every rate"
             } else {
@@ -910,9 +906,19 @@ impl core::fmt::Display for Refusal {
             c.observer_rad_s,
             c.margin,
             rate / 1e3,
-            score
+            over_one(score, 4)
         )
     }
+}
+
+/// A factor by which a target is missed (above 1), to `digits` significant digits, or as
+/// many more as it takes not to read `1`: a miss by 0.04 % is still a miss.
+fn over_one(by: f64, digits: usize) -> String {
+    let sig = crate::analysis::report::sig;
+    (digits..digits + 4)
+        .map(|d| sig(by, d))
+        .find(|s| s != "1")
+        .unwrap_or_else(|| sig(by, digits + 4))
 }
 
 /// The best of the evaluations when none passed, and what it missed (`None`: no
@@ -1055,6 +1061,15 @@ mod tests {
         for pair in product.alpha.windows(2) {
             assert!((pair[1] / pair[0] - ALPHA_STEP).abs() < 0.01, "{pair:?}");
         }
+    }
+
+    /// A miss that rounds to 1 at the table's precision still reads as a miss.
+    #[test]
+    fn a_miss_factor_never_reads_one() {
+        assert_eq!(over_one(1.0174, 3), "1.02");
+        assert_eq!(over_one(1.0004, 3), "1.0004");
+        assert_eq!(over_one(1.3271, 4), "1.327");
+        assert_eq!(over_one(1.000_04, 4), "1.00004");
     }
 
     #[test]

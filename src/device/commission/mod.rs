@@ -120,7 +120,8 @@ pub const MIN_AVERAGE_S: f32 = 0.02;
 pub const AVERAGE_TIME_CONSTANTS: f32 = 2.0;
 /// Slowest mechanical periods a hold may spend restarting its window because the armature
 /// was still moving (its motion induces a voltage the steady state must not contain, and
-/// its mean position is no stop's) before it gives up.
+/// its mean position is no stop's) before it gives up; at least one restart, whatever the
+/// coil ([`Plan::patience_ticks`]).
 pub const PATIENCE_PERIODS: f32 = 4.0;
 /// Slowest mechanical periods waited at each hold at the stops (after the coil's
 /// settling), before its window: a quarter period is the time the slowest armature

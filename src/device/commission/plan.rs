@@ -42,7 +42,11 @@ pub struct Plan {
     /// Ticks of the approach's voltage ramp.
     pub ramp_ticks: u32,
     /// Ticks a hold may spend restarting its window (each restart with the wait for the
-    /// coil to settle before it).
+    /// coil to settle before it): [`PATIENCE_PERIODS`] of the slowest mechanical period,
+    /// and at least one restart (the settle and two windows). A coil slower than its
+    /// armature holds the armature at a stop until its current has decayed, so the
+    /// armature leaves it inside the wait's settling part, which the window covers: 4
+    /// periods of a 3 g armature are 31 ms, one window of its 84 ms coil 0.5 s.
     pub patience_ticks: u32,
     /// Ticks at each level of the inductance probe's cycle ([`SETTLE_TIME_CONSTANTS`] of
     /// the slowest coil at the open stop).
@@ -197,7 +201,12 @@ impl Plan {
             drift_m: still_m / math::sqrt(2.0 * average_ticks as f32),
             release_ticks: ticks(RELEASE_PERIODS * period_s + settle_s)?,
             ramp_ticks: ticks(RAMP_PERIODS * period_s)?,
-            patience_ticks: ticks(PATIENCE_PERIODS * period_s)?,
+            // At least one restart whatever the coil: the window that moved, the settle
+            // and the window again. An armature that leaves a stop only once its coil's
+            // current has decayed (a coil slower than the armature) moves inside the
+            // wait's settling part, which the window covers.
+            patience_ticks: ticks(PATIENCE_PERIODS * period_s)?
+                .max(ticks(settle_s)?.saturating_add(average_ticks.saturating_mul(2))),
             probe_half_ticks: ticks(SETTLE_TIME_CONSTANTS * slowest_open_s)?,
             probe_cycles: {
                 let per_constant = open_inductance_h / resistance_ohm * rate_hz;

@@ -34,6 +34,8 @@ struct Rig {
     pull: fn(f32, f32) -> f32,
     read: fn(f32) -> f32,
     stuck: bool,
+    /// The file the plan is made from.
+    file: Coil,
 }
 
 /// A magnet whose pull grows as the gap (0.5 mm residual) closes: 4 A at the open
@@ -55,12 +57,13 @@ impl Rig {
             pull: magnet,
             read: |x| x,
             stuck: false,
+            file: FILE,
         }
     }
 
     /// Runs a whole identification; its result and the highest current.
     fn run(&self) -> (Result<Report, Abort>, f32) {
-        let plan = Plan::new(&FILE, RATE, 0, 1e-5).unwrap();
+        let plan = Plan::new(&self.file, RATE, 0, 1e-5).unwrap();
         let mut id = Identification::new(plan);
         let (mut i, mut pending, mut applied) = (0.0_f32, 0.0_f32, 0.0_f32);
         let (mut x, mut v, mut peak) = (0.0_f32, 0.0_f32, 0.0_f32);
@@ -232,6 +235,29 @@ fn an_armature_creeping_back_onto_the_open_stop_is_read_once_there() {
     );
     // A creep slower than the patience is named, not read short of the stop.
     assert_eq!(slowest, Err(Abort::NotAtRest), "{open_m:?}");
+}
+
+#[test]
+fn a_coil_slower_than_its_armature_is_averaged_again_once_the_armature_is_back() {
+    // 250 mH: a 125 ms coil (375 ms at the slowest the file admits) under an armature
+    // whose slowest period is 172 ms. Each window (750 ms) is longer than four periods,
+    // and the armature leaves the closed stop only as the coil's current decays, inside
+    // the settling part of the open stop's wait, which the window covers.
+    let slow = Coil {
+        open_inductance_h: 0.25,
+        closed_inductance_h: 0.25,
+        ..FILE
+    };
+    let plan = Plan::new(&slow, RATE, 0, 1e-5).unwrap();
+    let periods = plan.ramp_ticks * 2 * 4;
+    assert!(plan.average_ticks > periods, "{plan:?}");
+    let mut rig = Rig::coil(2.0);
+    rig.l = 0.25;
+    rig.file = slow;
+    let got = rig.run().0.unwrap();
+    assert!(got.ends.open_m.abs() < 1e-6, "{got:?}");
+    assert!((got.ends.closed_m / STROKE - 1.0).abs() < 1e-3, "{got:?}");
+    assert!((got.resistance.ohm / 2.0 - 1.0).abs() < 1e-2, "{got:?}");
 }
 
 #[test]

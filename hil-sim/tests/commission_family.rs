@@ -1024,3 +1024,27 @@ fn every_drawn_actuator_of_the_development_seed_is_commissioned_on_its_file_s_pl
     println!("routine at most {longest:.2} s of actuator time");
     assert!(failed.is_empty(), "{failed:?}");
 }
+
+/// A commissioning whose measurements make an actuator no file can hold (here a spring
+/// read pushing the wrong way) is counted as a refused file, named by the rule it breaks,
+/// not an error that ends the batch it is in: `bench commission` refuses to write such a
+/// file, and `hil-sim commission --tune` counts the draw as a miss and goes on.
+#[test]
+fn a_measured_actuator_that_breaks_a_rule_is_refused_by_name_in_closed_loop() {
+    use hil_sim::identification::commissioning::{self, ClosedLoop};
+    let (_, a) = hil_sim::simulation::actuator::load("product").unwrap();
+    let o = commissioning::run(&a, None).unwrap();
+    let report = o.report.unwrap();
+    let plant = commissioning::true_plant(&a, None).unwrap();
+    let mut m = commissioning::mechanics(&a, &report, &plant, None)
+        .unwrap()
+        .mechanics
+        .unwrap();
+    m.spring.n_per_m = -m.spring.n_per_m;
+    let c = commissioning::closed_loop(&a, &report, Some(&m), &plant, None).unwrap();
+    let ClosedLoop::Refused(why) = &c else {
+        panic!("{c:?}")
+    };
+    assert!(why.contains("mechanics.spring_n_per_m"), "{why}");
+    assert_eq!(c.misses(), ["refused"]);
+}

@@ -397,8 +397,14 @@ fn write_tuned(runs: &[Commissioned], seed: u64, out: &mut dyn Write) -> std::io
         } else {
             seeds.push(seed.wrapping_add(k as u64).to_string());
         }
-        if let commissioning::ClosedLoop::Untuned(why) = c {
-            refusals.push((seed.wrapping_add(k as u64), why));
+        match c {
+            commissioning::ClosedLoop::Untuned(why) => {
+                refusals.push((seed.wrapping_add(k as u64), "not tuned", why));
+            }
+            commissioning::ClosedLoop::Refused(why) => {
+                refusals.push((seed.wrapping_add(k as u64), "measured file refused", why));
+            }
+            commissioning::ClosedLoop::Ran { .. } => {}
         }
         for what in m {
             *misses.entry(what).or_default() += 1;
@@ -416,8 +422,8 @@ fn write_tuned(runs: &[Commissioned], seed: u64, out: &mut dyn Write) -> std::io
             format!("{} (seeds {})", misses.join(", "), seeds.join(", "))
         }
     )?;
-    for (s, why) in refusals {
-        writeln!(out, "not tuned, seed {s}: {why}")?;
+    for (s, what, why) in refusals {
+        writeln!(out, "{what}, seed {s}: {why}")?;
     }
     Ok(())
 }

@@ -314,6 +314,10 @@ pub const CLOSED_LOOP_VALIDATION: usize = 20;
 /// What a commissioned actuator does once tuned, in closed loop on its true plant.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ClosedLoop {
+    /// The measured actuator breaks a physical rule (a spring that pushes the wrong way, a
+    /// resistance the supply cannot drive the rated current through): its file is refused
+    /// by name, as `bench commission` refuses to write it.
+    Refused(String),
     /// No tuning meets every target on the measured actuator's corner plants: the tune's
     /// diagnosis.
     Untuned(String),
@@ -331,6 +335,7 @@ impl ClosedLoop {
     #[must_use]
     pub fn misses(&self) -> Vec<&'static str> {
         match self {
+            ClosedLoop::Refused(_) => vec!["refused"],
             ClosedLoop::Untuned(_) => vec!["untuned"],
             ClosedLoop::Ran { worst, targets } => worst.misses(targets),
         }
@@ -345,9 +350,11 @@ impl ClosedLoop {
 /// noise and the errors of `draw` (the sensor that was commissioned; `None`: none), so
 /// the steady error is judged on the true position with what the correction leaves.
 ///
+/// Measured values no actuator can have (a rule of
+/// [`Actuator::check_consistency`] broken) give [`ClosedLoop::Refused`], named by the rule.
+///
 /// # Errors
-/// Measured values no actuator can have; settings that do not derive; a correction beyond
-/// the calibration's room.
+/// Settings that do not derive; a correction beyond the calibration's room.
 pub fn closed_loop(
     a: &Actuator,
     report: &Report,
@@ -355,7 +362,15 @@ pub fn closed_loop(
     plant: &Params,
     draw: Option<&Specimen>,
 ) -> Result<ClosedLoop, Error> {
-    let (m, _) = measured(a, report, mechanics)?;
+    let (m, _) = match measured(a, report, mechanics).and_then(|(m, tol)| {
+        m.check_consistency()
+            .map(|_| (m, tol))
+            .map_err(Error::Actuator)
+    }) {
+        Ok(m) => m,
+        Err(e @ Error::Actuator(_)) => return Ok(ClosedLoop::Refused(e.to_string())),
+        Err(e) => return Err(e),
+    };
     let rate = f64::from(a.board.rate_hz);
     let space = crate::analysis::tune::Space::for_actuator(&m, rate)?;
     let tuned = crate::analysis::tune::tune(

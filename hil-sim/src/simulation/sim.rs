@@ -124,9 +124,7 @@ pub fn with_run_until<T>(
 ) -> Result<T, Error> {
     let run = simulate(scenario, None, SAMPLES.take(), until)?;
     let out = f(&run);
-    let mut samples = run.samples;
-    samples.clear();
-    SAMPLES.set(samples);
+    SAMPLES.set(run.samples);
     Ok(out)
 }
 

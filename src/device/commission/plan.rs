@@ -201,10 +201,6 @@ impl Plan {
             drift_m: still_m / math::sqrt(2.0 * average_ticks as f32),
             release_ticks: ticks(RELEASE_PERIODS * period_s + settle_s)?,
             ramp_ticks: ticks(RAMP_PERIODS * period_s)?,
-            // At least one restart whatever the coil: the window that moved, the settle
-            // and the window again. An armature that leaves a stop only once its coil's
-            // current has decayed (a coil slower than the armature) moves inside the
-            // wait's settling part, which the window covers.
             patience_ticks: ticks(PATIENCE_PERIODS * period_s)?
                 .max(ticks(settle_s)?.saturating_add(average_ticks.saturating_mul(2))),
             probe_half_ticks: ticks(SETTLE_TIME_CONSTANTS * slowest_open_s)?,

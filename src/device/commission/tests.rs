@@ -249,7 +249,10 @@ fn a_coil_slower_than_its_armature_is_averaged_again_once_the_armature_is_back()
         ..FILE
     };
     let plan = Plan::new(&slow, RATE, 0, 1e-5).unwrap();
-    let periods = plan.ramp_ticks * 2 * 4;
+    // The patience the armature alone would be given: PATIENCE_PERIODS slowest periods,
+    // the ramp being RAMP_PERIODS of one.
+    #[expect(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let periods = plan.ramp_ticks * (PATIENCE_PERIODS / RAMP_PERIODS) as u32;
     assert!(plan.average_ticks > periods, "{plan:?}");
     let mut rig = Rig::coil(2.0);
     rig.l = 0.25;

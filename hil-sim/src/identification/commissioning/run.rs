@@ -362,11 +362,9 @@ pub fn closed_loop(
     plant: &Params,
     draw: Option<&Specimen>,
 ) -> Result<ClosedLoop, Error> {
-    let (m, _) = match measured(a, report, mechanics).and_then(|(m, tol)| {
-        m.check_consistency()
-            .map(|_| (m, tol))
-            .map_err(Error::Actuator)
-    }) {
+    let checked = measured(a, report, mechanics)
+        .and_then(|(m, _)| m.check_consistency().map(|_| m).map_err(Error::Actuator));
+    let m = match checked {
         Ok(m) => m,
         Err(e @ Error::Actuator(_)) => return Ok(ClosedLoop::Refused(e.to_string())),
         Err(e) => return Err(e),

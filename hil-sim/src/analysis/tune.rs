@@ -24,7 +24,10 @@
 //!    `worst / target` over the metrics, the plants and the rates (the ripple against
 //!    [`RIPPLE_RESERVE`] of its target); a candidate stops at its first miss. A run in
 //!    which a fault latches misses whatever follows, so it stops at the fault
-//!    ([`crate::simulation::sim::Until::Fault`]).
+//!    ([`crate::simulation::sim::Until::Fault`]); a screening run also stops at the
+//!    first sample that makes a move miss its settling target
+//!    ([`crate::simulation::sim::Until::Miss`]): it is not run on the corners whatever
+//!    follows, so the same candidates go on, at a fraction of the screening's time.
 //! 5. **Validation**: a candidate that meets every target on every corner then runs on a
 //!    Monte Carlo sample of drawn plants at every rate (interior plants and other noise
 //!    realisations find what the corners miss). The first candidate, in screening order,
@@ -150,6 +153,8 @@ pub struct Space {
 /// Candidates whose score on the nominal plant is above this are not run on the corners:
 /// the worst corner is never better than the nominal plant \[-\].
 pub const SCREEN: f64 = 1.0;
+// A screening run stops at a certain miss (`Until::Miss`), which only a screen of 1 allows.
+const _: () = assert!(SCREEN <= 1.0);
 
 /// Ratio of neighbouring points of the `alpha` grid: half an octave. The grid runs through
 /// the default gain ([`ema::control::actuator::DEFAULT_ALPHA_PER_W`] times the mechanical
@@ -505,8 +510,11 @@ pub fn tune(
         ));
     }
 
-    // Theorem 1 and the screening run, in parallel over the candidates.
-    let screen = |cs: &[Candidate]| -> Result<Vec<Evaluation>, Error> {
+    // Theorem 1 and the screening run, in parallel over the candidates. A screening run
+    // stops at the first certain miss ([`Until::Miss`]): only a candidate that meets every
+    // target goes on, so a miss's size matters only to a refusal at this stage, which
+    // screens again to the end (below).
+    let screen = |cs: &[Candidate], until: Until| -> Result<Vec<Evaluation>, Error> {
         cs.par_iter()
             .map(|c| -> Result<Evaluation, Error> {
                 let theorem = theorem(&base, c.alpha)?;
@@ -528,7 +536,7 @@ pub fn tune(
                 }
                 let sc = condition(name, act, c, own_rate, substeps)?;
                 let t = Targets::for_scenario(&sc);
-                let m = with_run_until(&sc, Until::Fault, |r| r.metrics.clone())?;
+                let m = with_run_until(&sc, until, |r| r.metrics.clone())?;
                 let (score, what) = judge(&Worst::of([&m], &t), &t);
                 e.screen = score;
                 e.limiting = Some((what.into(), own_rate));
@@ -546,7 +554,7 @@ pub fn tune(
         plants: &plants,
         validation_draws,
     };
-    let mut evaluations = screen(&candidates)?;
+    let mut evaluations = screen(&candidates, Until::Miss)?;
     let mut found = search.worst_case(&mut evaluations)?;
     // The best so far, refined: the neighbours of the best few between their points, each
     // round at half the last round's step.
@@ -572,7 +580,7 @@ pub fn tune(
         margins.extend(refined.iter().map(|c| c.margin));
         margins.sort_by(f64::total_cmp);
         margins.dedup();
-        let mut more = screen(&refined)?;
+        let mut more = screen(&refined, Until::Miss)?;
         found = search.worst_case(&mut more)?;
         evaluations.extend(more);
         factor = factor.sqrt();
@@ -588,6 +596,11 @@ pub fn tune(
     let refusal = if chosen.is_some() {
         None
     } else {
+        if evaluations.iter().all(|e| e.worst.is_empty()) {
+            // None screened in, so none was refined: the refusal names the best screening,
+            // which takes every miss's full size.
+            evaluations = screen(&candidates, Until::Fault)?;
+        }
         // Every candidate was at least screened, so there is a best.
         refusal(&evaluations)
     };
@@ -1105,5 +1118,33 @@ mod tests {
         let n = top.neighbours(&MARGINS, REFINE_FACTOR);
         assert_eq!(n.len(), 17, "{n:?}");
         assert!(n.iter().all(|c| c.margin <= 0.85));
+    }
+
+    /// When no candidate screens in, the refusal gives the best screening's full miss,
+    /// not the stopped run's: moves shaped half as gently as the product's miss their
+    /// settling on the nominal plant (the screening run stops there), and the refusal
+    /// names what the full run misses most, by its factor.
+    #[test]
+    fn a_refusal_on_the_nominal_plant_gives_the_miss_s_full_size() {
+        use crate::simulation::sim::{run, with_run_until};
+        let act = Actuator::PRODUCT;
+        let t = act.tuning.unwrap();
+        let space = Space {
+            alpha: vec![f64::from(t.alpha_per_s)],
+            observer_per_alpha: vec![f64::from(t.observer_rad_s / t.alpha_per_s)],
+            margin: vec![f64::from(t.margin) / 2.0],
+        };
+        let rate = f64::from(act.board.rate_hz);
+        let report = tune("product", &act, &[rate], &space, 1, 4).unwrap();
+        assert_eq!(report.evaluations.len(), 2);
+        let r = report.refusal.unwrap();
+        let sc = condition("product", &act, &r.candidate, rate, 1).unwrap();
+        let full = run(&sc).unwrap();
+        let stopped = with_run_until(&sc, Until::Miss, |r| r.samples.len()).unwrap();
+        assert!(stopped < full.samples.len(), "{stopped}");
+        let targets = Targets::for_scenario(&sc);
+        let (by, what) = judge(&Worst::of([&full.metrics], &targets), &targets);
+        assert!(by.is_finite() && by > 1.0, "{by} {what}");
+        assert_eq!((r.stage, r.what.as_str(), r.by), (Stage::Nominal, what, by));
     }
 }

@@ -203,7 +203,14 @@ fn candidates_table(report: &tune::Report, stroke_m: f64) -> Table {
             e.theorem
                 .radius_optimised_m
                 .map_or_else(|| "-".into(), |r| sig(r / stroke_m, 3)),
-            sig(e.screen, 3),
+            // A screening run stops at a certain settling miss (`Until::Miss`): its
+            // size is not known, only that it is above 1, and the limiting metric is the
+            // one it stopped at.
+            if e.screen.is_infinite() && e.limiting.as_ref().is_some_and(|l| l.0 == "settling") {
+                "> 1 (stopped)".into()
+            } else {
+                sig(e.screen, 3)
+            },
             if e.worst.is_empty() {
                 "-".into()
             } else {

@@ -111,6 +111,52 @@ pub enum Until {
     /// search that rejects any run in which a fault latched, whatever the rest of it
     /// does. The run's metrics then cover only the ticks up to the fault.
     Fault,
+    /// As [`Until::Fault`], and also at the first sample that makes a step segment miss
+    /// its settling target ([`crate::simulation::targets::Targets::for_scenario`]): a
+    /// sample outside the segment's 2 % band once its target has passed. The segment's
+    /// settling time is then longer than the target whatever follows (it ends no earlier
+    /// than the next sample), and the stopped run's reads as never settled: for a search
+    /// that rejects a run missing any target and needs no more of it.
+    Miss,
+}
+
+/// A step segment's settling deadline, for [`Until::Miss`].
+struct Deadline {
+    /// Past this time \[s\], a sample outside the band is a certain miss.
+    after_s: f64,
+    /// The segment's end \[s\].
+    end_s: f64,
+    to_m: f64,
+    band_m: f64,
+}
+
+impl Deadline {
+    /// The step segments of `scenario`, in time order.
+    fn of(scenario: &Scenario) -> Vec<Self> {
+        let t = crate::simulation::targets::Targets::for_scenario(scenario);
+        scenario
+            .reference
+            .segments(scenario.duration_s)
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.to_m != s.from_m)
+            .map(|(k, s)| Self {
+                after_s: s.start_s + t.settling_of(k),
+                end_s: s.end_s,
+                to_m: s.to_m,
+                band_m: 0.02 * (s.to_m - s.from_m).abs(),
+            })
+            .collect()
+    }
+
+    /// Whether the sample at `t_s`, at `x_m`, makes its segment's settling miss.
+    fn missed(deadlines: &[Self], t_s: f64, x_m: f64) -> bool {
+        // Segments are contiguous and few: the one holding `t_s`, if a step.
+        deadlines
+            .iter()
+            .find(|d| t_s < d.end_s)
+            .is_some_and(|d| t_s > d.after_s && (x_m - d.to_m).abs() > d.band_m)
+    }
 }
 
 /// [`with_run`], stopped as `until` says.
@@ -190,6 +236,11 @@ fn simulate(
     let guard = guard::Config::for_period(period_ns.round() as u32);
     let mut guarded = guard::State::default();
     let mut watchdog = hal::Watchdog::reference(scenario.rate_hz());
+    let deadlines = if until == Until::Miss {
+        Deadline::of(scenario)
+    } else {
+        Vec::new()
+    };
 
     for _ in 0..n {
         let now = stepper.sample();
@@ -300,7 +351,10 @@ fn simulate(
             i_abs_max_a: period.i_abs_max_a,
             energy_j: period.energy_j,
         });
-        if until == Until::Fault && status.fault.is_some() {
+        if until != Until::End && status.fault.is_some() {
+            break;
+        }
+        if until == Until::Miss && Deadline::missed(&deadlines, now.t_s, now.x_m) {
             break;
         }
     }
@@ -863,6 +917,63 @@ mod tests {
         assert_eq!(samples.len(), k + 1);
         assert_eq!(samples.as_slice(), full.samples.get(..=k).unwrap());
         assert_eq!(first, full.metrics.first_fault);
+    }
+
+    /// A run stopped at a settling miss is the full run up to a sample outside the band
+    /// after the move's target has passed, and the full run misses that target; a run
+    /// that meets its targets is not stopped.
+    #[test]
+    fn a_run_until_the_miss_stops_only_where_the_settling_is_missed() {
+        use crate::analysis::tune::{condition, Candidate};
+        use crate::simulation::targets::{Targets, Worst};
+        let act = ema::control::actuator::Actuator::PRODUCT;
+        let sc = crate::simulation::actuator::scenario("product", &act).unwrap();
+        let met = run(&sc).unwrap();
+        let t = Targets::for_scenario(&sc);
+        assert!(Worst::of([&met.metrics], &t).settling_ratio < 1.0);
+        let same = with_run_until(&sc, Until::Miss, |r| r.samples.clone()).unwrap();
+        assert_eq!(same, met.samples);
+
+        // Moves shaped four times gentler than the product's.
+        let tuning = act.tuning.unwrap();
+        let slow = Candidate {
+            alpha: f64::from(tuning.alpha_per_s),
+            observer_rad_s: f64::from(tuning.observer_rad_s),
+            margin: f64::from(tuning.margin) / 4.0,
+            follows_force: tuning.disturbance_follows_force,
+        };
+        let sc = condition("slow", &act, &slow, f64::from(act.board.rate_hz), 1).unwrap();
+        let full = run(&sc).unwrap();
+        let t = Targets::for_scenario(&sc);
+        let w = Worst::of([&full.metrics], &t);
+        assert!(w.settling_ratio > 1.0 && w.faulted_runs == 0, "{w:?}");
+        let (samples, ratio) = with_run_until(&sc, Until::Miss, |r| {
+            (
+                r.samples.clone(),
+                Worst::of([&r.metrics], &t).settling_ratio,
+            )
+        })
+        .unwrap();
+        assert!(samples.len() < full.samples.len());
+        assert_eq!(
+            samples.as_slice(),
+            full.samples.get(..samples.len()).unwrap()
+        );
+        assert!(ratio > 1.0, "{ratio}");
+        // It stopped at the first sample that proves the miss: outside the band of its
+        // move, after the move's target.
+        let last = samples.last().unwrap();
+        let (k, seg) = full
+            .metrics
+            .segments
+            .iter()
+            .enumerate()
+            .find(|(_, s)| s.spec.start_s <= last.t_s && last.t_s < s.spec.end_s)
+            .unwrap();
+        let band = 0.02 * (seg.spec.to_m - seg.spec.from_m).abs();
+        assert!((last.x_m - seg.spec.to_m).abs() > band);
+        assert!(last.t_s - seg.spec.start_s > t.settling_of(k));
+        assert!(seg.settling_time_s.is_none_or(|s| s > t.settling_of(k)));
     }
 
     #[test]

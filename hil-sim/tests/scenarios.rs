@@ -315,6 +315,34 @@ fn montecarlo_is_deterministic_and_draws_distinct_plants() {
     assert_ne!(a[0].plant, c[0].plant);
 }
 
+/// A set run until a miss: every draw when none misses, the same as the whole set; else
+/// the whole set's first draws, up to the end of the chunk holding the first miss.
+#[test]
+fn a_set_run_until_a_miss_stops_after_the_chunk_that_misses() {
+    use hil_sim::analysis::montecarlo::{montecarlo_until_miss, montecarlo_with, UNTIL_MISS_CHUNK};
+    use hil_sim::simulation::targets::{Targets, Worst};
+    let sc = Scenario::product(20e3, 24.0).unwrap();
+    let n = UNTIL_MISS_CHUNK + 4;
+    let all = montecarlo_with(&sc, n, 42, false).unwrap();
+    // Every target but the current's out of reach of a miss.
+    let mut t = Targets::for_scenario(&sc);
+    t.settling_s = vec![sc.duration_s];
+    (t.overshoot_pct, t.steady_error_pct) = (100.0, 100.0);
+    (t.ripple_pp_a, t.voltage_v) = (1e3, 1e3);
+    assert!(Worst::of_draws(&all, &t).misses(&t).is_empty());
+    assert_eq!(montecarlo_until_miss(&sc, n, 42, &t).unwrap(), all);
+    // A current target below the first chunk's largest peak: a draw of that chunk
+    // misses, and the set stops with it.
+    let chunk = UNTIL_MISS_CHUNK;
+    let mut first: Vec<f64> = all[..chunk].iter().map(|d| d.metrics.i_peak_a).collect();
+    first.sort_by(f64::total_cmp);
+    t.current_a = first[chunk - 2];
+    assert!(!Worst::of_draws(&all[..chunk], &t).misses(&t).is_empty());
+    let stopped = montecarlo_until_miss(&sc, n, 42, &t).unwrap();
+    assert_eq!(stopped.len(), chunk);
+    assert_eq!(stopped.as_slice(), &all[..stopped.len()]);
+}
+
 /// The uncertainty set contains plants the paper's bounds do not bracket, but few: with a
 /// surface drawn anywhere inside the +-20 % bounds and growing with the gap, the
 /// energy-consistent mu = -dL/dg can fall below mu_lo, at most to

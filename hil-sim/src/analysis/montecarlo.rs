@@ -17,7 +17,7 @@ pub use crate::simulation::draw::{Draw, SensorDraw};
 use crate::simulation::hal::{sensor_position_error_m, Adc, CalibrationClass};
 use crate::simulation::scenario::{Scenario, Sensors, TruePlant, Uncertainty};
 use crate::simulation::sim::with_run;
-use crate::simulation::targets::worse;
+use crate::simulation::targets::{worse, Targets, Worst};
 use crate::simulation::Error;
 
 /// How the draws are widened beyond the plant uncertainty set.
@@ -164,8 +164,59 @@ pub fn montecarlo_opts(
         bar.set_style(style);
     }
     bar.set_prefix(scenario.name.clone());
+    let out = draws(scenario, 0..n, seed, &bar, options);
+    bar.finish_and_clear();
+    out
+}
+
+/// Draws of a set that a candidate must pass in full, run [`UNTIL_MISS_CHUNK`] at a time:
+/// the first `n` draws of [`montecarlo_with`], or those up to the end of the first chunk
+/// in which a draw misses a target of `targets`. A set that passes is the same as
+/// [`montecarlo_with`]'s; one that misses stops, at a fraction of the runs.
+///
+/// # Errors
+/// As [`montecarlo`].
+pub fn montecarlo_until_miss(
+    scenario: &Scenario,
+    n: usize,
+    seed: u64,
+    targets: &Targets,
+) -> Result<Vec<Draw>, Error> {
+    scenario.validate()?;
+    scenario.controller.build()?;
+    let bar = ProgressBar::hidden();
+    let mut out = Vec::with_capacity(n);
+    for start in (0..n).step_by(UNTIL_MISS_CHUNK) {
+        let chunk = draws(
+            scenario,
+            start..n.min(start + UNTIL_MISS_CHUNK),
+            seed,
+            &bar,
+            &Options::default(),
+        )?;
+        let missed = !Worst::of_draws(&chunk, targets).misses(targets).is_empty();
+        out.extend(chunk);
+        if missed {
+            break;
+        }
+    }
+    Ok(out)
+}
+
+/// Draws [`montecarlo_until_miss`] runs at a time: a fixed number, so that where it
+/// stops does not depend on the machine's threads; a few per core keeps both busy.
+pub const UNTIL_MISS_CHUNK: usize = 16;
+
+/// Draws `indices` of `scenario` from `seed`, widened by `options`, in parallel.
+fn draws(
+    scenario: &Scenario,
+    indices: std::ops::Range<usize>,
+    seed: u64,
+    bar: &ProgressBar,
+    options: &Options,
+) -> Result<Vec<Draw>, Error> {
     let cal = scenario.controller.sense.position;
-    let out = (0..n)
+    indices
         .into_par_iter()
         .map(|index| {
             let (sc, adc) = options.scenario(scenario, seed, index)?;
@@ -213,7 +264,5 @@ pub fn montecarlo_opts(
             bar.inc(1);
             r
         })
-        .collect::<Result<Vec<_>, _>>();
-    bar.finish_and_clear();
-    out
+        .collect::<Result<Vec<_>, _>>()
 }

@@ -31,7 +31,10 @@
 //! 5. **Validation**: a candidate that meets every target on every corner then runs on a
 //!    Monte Carlo sample of drawn plants at every rate (interior plants and other noise
 //!    realisations find what the corners miss). The first candidate, in screening order,
-//!    that passes both is chosen.
+//!    that passes both is chosen. The draws run a chunk at a time, and a candidate that
+//!    misses stops after the chunk where it does
+//!    ([`crate::analysis::montecarlo::montecarlo_until_miss`]): one that passes runs them
+//!    all, so the choice is the same.
 //! 6. **Refinement**: when no point of the grid passes, the [`REFINE_SEEDS`] best are
 //!    refined: their neighbours half a grid step away (`alpha` and the observer a factor
 //!    `2^(1/4)` either way, the margin halfway to the next) are screened, run on the
@@ -49,7 +52,7 @@ use ema::control::actuator::{Actuator, Tuning};
 use ema::control::Settings;
 
 use crate::analysis::lyapunov::{Bound, Problem};
-use crate::analysis::montecarlo::montecarlo_with;
+use crate::analysis::montecarlo::montecarlo_until_miss;
 use crate::simulation::plant::{ForceModel, Params, Surface};
 use crate::simulation::scenario::{Scenario, TruePlant};
 use crate::simulation::sim::{with_run_until, Until};
@@ -737,11 +740,14 @@ impl Search<'_> {
             for &rate in self.rates_hz {
                 let sc = condition(self.name, self.act, &e.candidate, rate, self.substeps)?;
                 let t = Targets::for_scenario(&sc);
-                let draws = montecarlo_with(
+                // A candidate that passes runs every draw; one that misses stops with the
+                // chunk of draws where it does, and the target it names is the first
+                // missed there.
+                let draws = montecarlo_until_miss(
                     &sc,
                     self.validation_draws,
                     crate::analysis::seeds::TUNE_VALIDATION,
-                    false,
+                    &t,
                 )?;
                 let w = Worst::of_draws(&draws, &t);
                 let misses = w.misses(&t);

@@ -111,6 +111,14 @@
 //! taken with the nominal `mu` and an allowance of [`EMF_ALLOWANCE`] of itself either way
 //! (the surfaces' bounds and the velocity estimate's error): on a fast, small valve it is
 //! as large as the resistive drop, and left out it reads as a coil outside its bounds.
+//! The allowance holds while the observer follows the armature. A loop that limit-cycles
+//! faster than the observer's bandwidth (a file run with gains far from its own, bang-bang
+//! on the supply) leaves the estimate a quarter of a cycle behind, of either sign; on an
+//! armature whose `i dL/dx` is large (a short airgap, many turns) the back-EMF at a few
+//! centimetres per second is then as large as the supply, the estimate misses most of it,
+//! and the bank names [`Fault::ModelBounds`] on a coil inside its bounds. The cure is a
+//! residual in the flux, `L(x) i` at the window's two ends against the integral of
+//! `u - R i`, which carries the motion in `L(x)` with no velocity at all; it is not built.
 //!
 //! What this cannot see: a reading frozen while the coil is driven no harder than the
 //! resistance's interval explains (`|u - R i| <= tol R |i|`, holding or a slow move, with

@@ -44,6 +44,9 @@ use crate::simulation::scenario::{Scenario, SegmentSpec};
 use crate::simulation::trace::{fault_name, ImpactAt, Sample};
 use crate::simulation::Error;
 
+/// Half-width of the settling band, relative to the step \[-\]: 2 %.
+pub const SETTLING_BAND: f64 = 0.02;
+
 /// Metrics of one reference segment.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Segment {
@@ -396,7 +399,7 @@ fn segment(spec: SegmentSpec, window_s: f64, trace: &[Sample], impacts: &[Impact
     let b = trace.partition_point(|s| s.t_s < spec.end_s);
     let seg = trace.get(a..b).unwrap_or_default();
     let step = spec.to_m - spec.from_m;
-    let band = 0.02 * step.abs();
+    let band = SETTLING_BAND * step.abs();
     let pass = Pass::over(seg, spec.to_m, step, band);
 
     let settling_time_s = if step == 0.0 || seg.is_empty() {

@@ -144,7 +144,7 @@ impl Deadline {
                 after_s: s.start_s + t.settling_of(k),
                 end_s: s.end_s,
                 to_m: s.to_m,
-                band_m: 0.02 * (s.to_m - s.from_m).abs(),
+                band_m: metrics::SETTLING_BAND * (s.to_m - s.from_m).abs(),
             })
             .collect()
     }
@@ -970,7 +970,7 @@ mod tests {
             .enumerate()
             .find(|(_, s)| s.spec.start_s <= last.t_s && last.t_s < s.spec.end_s)
             .unwrap();
-        let band = 0.02 * (seg.spec.to_m - seg.spec.from_m).abs();
+        let band = metrics::SETTLING_BAND * (seg.spec.to_m - seg.spec.from_m).abs();
         assert!((last.x_m - seg.spec.to_m).abs() > band);
         assert!(last.t_s - seg.spec.start_s > t.settling_of(k));
         assert!(seg.settling_time_s.is_none_or(|s| s > t.settling_of(k)));

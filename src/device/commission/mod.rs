@@ -80,7 +80,10 @@
 //! does not bias them (a least squares on `y(k)` itself, whose regressor carries that
 //! noise, read a soft-sprung plunger's small probe 6 % high), and both draw on the
 //! whole decay, so no single reading's noise sets the result. `L = -Ts R / ln a` with the
-//! resistance from the closed stop. The probe's pull moves the armature a little
+//! resistance from the closed stop. A coil whose time constant is about the period has
+//! decayed within the converter's delay and a reading or two, and the noise on those few
+//! readings is what bounds the result: [`Plan::inductance_uncertainty`] says by how much,
+//! for whoever writes the reading down. The probe's pull moves the armature a little
 //! off the open stop (the end stops calibrate how far, from its position averaged over
 //! the probe's cycle); `1/L` being linear in the gap, the line through the probe's and
 //! the closed stop's values gives the open stop's. The two inductances are the magnetic

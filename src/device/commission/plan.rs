@@ -1,6 +1,8 @@
 //! What a commissioning is asked to do: the [`Plan`] built from the actuator file, and the
 //! [`Coil`] it starts from.
 
+use super::decay::relative_error;
+use super::Report;
 use super::{
     AVERAGE_TIME_CONSTANTS, FILE_TOLERANCE, HIGH_SHARE, LOW_SHARE, MAX_PROBE_CYCLES, MIN_AVERAGE_S,
     PATIENCE_PERIODS, PROBE_HIGH_SHARE, PROBE_LOW_PER_HIGH, PROBE_PULL_SHARE, PROBE_READINGS,
@@ -215,6 +217,54 @@ impl Plan {
             probe_a: [PROBE_LOW_PER_HIGH * probe_high_a, probe_high_a],
             stroke_m,
         })
+    }
+
+    /// Two standard errors of the inductances `report` read at the open and at the closed
+    /// stop, relative, from the current converter's noise, `noise_a` RMS per reading \[A\]:
+    /// the readings' noise carried through the fit's two weighted sums and their ratio, to
+    /// first order. The open stop's from the probe's [`Plan::probe_halves`] steps between
+    /// its two levels, the closed stop's from the one step between its two holds'
+    /// currents. Each is the larger of the errors at the factor per period the reading and
+    /// the measured resistance give and at the file's ([`Plan::guess_factor`]): noise that
+    /// read a decay far slower than it is predicts too small an error at its own reading.
+    /// (The open stop's is the probe's, whose reading the small pull moved off the stop:
+    /// the line to the stop hardly scales it.)
+    ///
+    /// A coil whose time constant is about the period is over within a reading or two of
+    /// the converter's delay, and the fit reads the shape of the decay from few, small
+    /// readings: at the open stop of a fast coil the noise, not the method, bounds what the
+    /// reading is worth, and this says by how much. `NaN` for an inductance that is not
+    /// positive.
+    #[must_use]
+    pub fn inductance_uncertainty(&self, report: &Report, noise_a: f32) -> [f32; 2] {
+        let r = report.resistance.ohm;
+        let [near_a, full_a] = report.resistance.i_a;
+        let [open_guess, closed_guess] = self.guess_factor;
+        // Two standard errors of one fit, the larger at the reading's factor and at the
+        // file's (`guess`): noise that read a decay far slower than it is would predict
+        // itself too small an error.
+        let fit = |step_a: f32, steps: f32, read_h: f32, guess: f32| {
+            let at = |factor: f32| {
+                relative_error(step_a, steps, noise_a, factor, guess, self.skip_readings)
+            };
+            2.0 * math::max(at(libm::expf(-self.period_s * r / read_h)), at(guess))
+        };
+        #[expect(clippy::cast_precision_loss)]
+        let probe_steps = self.probe_halves() as f32;
+        [
+            fit(
+                self.probe_a[1] - self.probe_a[0],
+                probe_steps,
+                report.inductance.open_h,
+                open_guess,
+            ),
+            fit(
+                (full_a - near_a).abs(),
+                1.0,
+                report.inductance.closed_h,
+                closed_guess,
+            ),
+        ]
     }
 
     /// Levels the probe's cycle holds: up and down `probe_cycles` times, ending down.

@@ -3,11 +3,12 @@
 use ema::control::actuator::Actuator;
 use ema::device::commission::Report;
 
-use super::{HoldInductance, IRON_SHARE};
+use super::{coverage_factor, HoldInductance, IRON_SHARE};
 
-/// How well the routine's step responses read an end stop's inductance, two standard
-/// errors, relative: the weight of the stops' readings in [`Circuit::fit`] (the routine
-/// reports no uncertainty of its own). About what the holds' probes read: the family's drawn
+/// How well the routine's step responses read an end stop's inductance at best, two
+/// standard errors, relative: the weight of the stops' readings in [`Circuit::fit`] unless
+/// the converter's noise leaves them less certain ([`stop_uncertainty`]). About what the
+/// holds' probes read: the family's drawn
 /// plants read the stops with median errors of 0.1 % to 1 % (`hil-sim commission`),
 /// the holds with two standard errors of 0.2 % to 0.9 %. Weighed as the 5 % the
 /// routine is held to, the stops counted for nothing beside the holds, and the line
@@ -16,6 +17,48 @@ use super::{HoldInductance, IRON_SHARE};
 /// does worse: on 1000 drawn 12 V solenoids, weighed as 0.5 % the stops read 10
 /// springs more than 5 % off, as 2 % five, as 1 % one (5.4 %).
 pub const STOP_INDUCTANCE_CLASS: f64 = 0.01;
+
+/// Two standard errors of the inductances the commissioning's `report` read at the open
+/// and at the closed stop of the actuator file `a`, relative: what the converter's noise
+/// leaves the step-response fits ([`ema::device::commission::Plan::inductance_uncertainty`],
+/// the board's noise [`ema::control::sense::NOISE_RMS_CODES`] on the file's current
+/// channel), at least [`STOP_INDUCTANCE_CLASS`] (what the noise leaves a slow coil is far
+/// below what the method's other errors do). A coil whose time constant at the open stop
+/// is about the period reads that stop from few, small readings: on the development seed's
+/// actuators whose open stop's time constant is under 2.5 periods, the errors' spread over
+/// this prediction's standard error is 1.0 to 1.2 in each band of time constants (drawn
+/// plants and converters, `hil-sim commission`'s draws).
+#[must_use]
+pub fn stop_uncertainty(report: &Report, a: &Actuator) -> [f64; 2] {
+    let noise_a = ema::control::sense::NOISE_RMS_CODES * a.calibration().current.scale;
+    let predicted = ema::device::commission::Plan::for_actuator(a, a.board.rate_hz)
+        .map_or([f32::NAN; 2], |plan| {
+            plan.inductance_uncertainty(report, noise_a)
+        });
+    predicted.map(|u| STOP_INDUCTANCE_CLASS.max(f64::from(u)))
+}
+
+/// The open stop's inductance a commissioned file starts from \[H\], and two standard
+/// errors of it, relative: the one the commissioning's `report` read, unless what the
+/// converter's noise leaves it ([`stop_uncertainty`]), as a 99 % interval
+/// ([`coverage_factor`]), is wider than the file `a`'s surface tolerance: then the file's,
+/// whose tolerance is taken as that interval. A coil whose time constant at the open stop
+/// is about the period reads it from few, small readings, and the datasheet knows it
+/// better; with the holds' probes the circuit is fitted mostly to them, and the open
+/// stop's value matters where they read nothing.
+#[must_use]
+pub fn open_stop(report: &Report, a: &Actuator) -> (f64, f64) {
+    let [open, _] = stop_uncertainty(report, a);
+    let coverage = 0.5 * coverage_factor(usize::MAX);
+    let surface = f64::from(a.tolerance.surface);
+    match a.time_scales() {
+        Ok(t) if coverage * open > surface => (
+            f64::from(t.coil_open_s) * f64::from(a.coil.resistance_ohm),
+            surface / coverage,
+        ),
+        _ => (f64::from(report.inductance.open_h), open),
+    }
+}
 
 /// How much better, in standard deviations, a surface growing with the gap must explain
 /// the inductances than a constant one for [`Circuit::fit`] to keep it (the weighted sum of
@@ -176,7 +219,7 @@ impl Circuit {
     /// pole).
     ///
     /// Weighted least squares on `1/L`, each reading by its own uncertainty (the holds': their
-    /// probes'; the stops': [`STOP_INDUCTANCE_CLASS`]): for each growth `q` the line in
+    /// probes'; the stops': [`stop_uncertainty`], the open stop's as [`open_stop`] gives it): for each growth `q` the line in
     /// `c0`, `c1` is exact, and `q` is searched from none to [`GROWTH_MAX`], on a grid
     /// and then by golden section about its best point, and kept only where it explains
     /// the readings [`GROWTH_SIGNIFICANCE`] standard deviations better than none. The
@@ -186,18 +229,18 @@ impl Circuit {
     #[must_use]
     pub fn fit(report: &Report, a: &Actuator, holds: &[Option<HoldInductance>]) -> Self {
         let stops = Self::through_stops(report, a);
-        let (open_h, closed_h) = (
-            f64::from(report.inductance.open_h),
-            f64::from(report.inductance.closed_h),
-        );
-        let class = 0.5 * STOP_INDUCTANCE_CLASS;
-        // (gap, 1/L, weight): the weight 1 / sd(1/L)^2, sd(1/L) = (sd(L) / L) / L.
+        let ((open_h, open_u), closed_h) =
+            (open_stop(report, a), f64::from(report.inductance.closed_h));
+        let [_, closed_u] = stop_uncertainty(report, a);
+        // (gap, 1/L, weight): the weight 1 / sd(1/L)^2, sd(1/L) = (sd(L) / L) / L, and
+        // two standard errors `u` of `L`, relative, are `2 sd(L) / L`.
+        let weight = |h: f64, u: f64| (2.0 * h / u).powi(2);
         let mut points = vec![
-            (stops.gap_m(0.0), 1.0 / open_h, (open_h / class).powi(2)),
+            (stops.gap_m(0.0), 1.0 / open_h, weight(open_h, open_u)),
             (
                 stops.gap_m(stops.stroke_m),
                 1.0 / closed_h,
-                (closed_h / class).powi(2),
+                weight(closed_h, closed_u),
             ),
         ];
         points.extend(holds.iter().flatten().map(|h| {

@@ -60,7 +60,9 @@ pub const IRON_SHARE: f32 = 1e-6;
 /// the stops' ([`Circuit::fit`](super::Circuit::fit)), in the file's form: a pole
 /// geometry's sides, growth (`fringing_spread`) and iron reluctance (its gap count,
 /// fringing coefficient and aspect kept), or the fitted circuit's inductances at the two
-/// stops. Without them, the stops' two inductances.
+/// stops. Without them, the stops' two inductances, the open stop's as
+/// [`open_stop`](super::open_stop) gives it (the file's where the reading is the less
+/// certain).
 ///
 /// A measured spring, mass and friction carry the tolerance their measurement leaves
 /// ([`fitted_tolerance`]), when it is below the file's: the converters' scale and the
@@ -121,7 +123,10 @@ pub fn measured(
         }
         (circuit, _) => {
             let (open_h, closed_h) = circuit.map_or(
-                (report.inductance.open_h, report.inductance.closed_h),
+                (
+                    super::open_stop(report, file).0 as f32,
+                    report.inductance.closed_h,
+                ),
                 |c| {
                     (
                         c.inductance_h(0.0) as f32,

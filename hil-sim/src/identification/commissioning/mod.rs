@@ -46,7 +46,9 @@ mod run;
 mod spring;
 
 pub use armature::{fit_armature, Armature, SETTLED_SHARE, STOP_SHARE};
-pub use circuit::{Circuit, GROWTH_MAX, GROWTH_SIGNIFICANCE, STOP_INDUCTANCE_CLASS};
+pub use circuit::{
+    open_stop, stop_uncertainty, Circuit, GROWTH_MAX, GROWTH_SIGNIFICANCE, STOP_INDUCTANCE_CLASS,
+};
 pub use holds::{
     decimations, hold_tuning, mechanics, Holding, Holds, Mechanics, HOLD_ATTEMPTS,
     HOLD_WINDOW_SHARE, MOVE_CAPTURE_MOVES, REST_SHARE, RETRY_GAIN_SHARE,

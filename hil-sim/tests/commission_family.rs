@@ -1060,7 +1060,7 @@ fn a_measured_actuator_that_breaks_a_rule_is_refused_by_name_in_closed_loop() {
 #[test]
 fn a_fast_coil_s_open_stop_is_read_within_what_its_noise_leaves() {
     use hil_sim::identification::commissioning::{
-        coverage_factor, measured, run, stop_uncertainty, Circuit, Specimen,
+        measured, open_stop_interval, run, Circuit, Specimen,
     };
     use rand::SeedableRng;
     let a = hil_sim::analysis::drawn::draw_one(hil_sim::analysis::seeds::DRAWN_DEVELOPMENT, 233)
@@ -1080,7 +1080,7 @@ fn a_fast_coil_s_open_stop_is_read_within_what_its_noise_leaves() {
         let (Ok(r), Some(e)) = (o.report, o.errors()) else {
             continue;
         };
-        let interval = 0.5 * coverage_factor(usize::MAX) * stop_uncertainty(&r, &a)[0];
+        let interval = open_stop_interval(&r, &a);
         worst = worst.max(e.inductance_open.abs());
         outside += usize::from(e.inductance_open.abs() > interval);
         let (written, _) = measured(&a, &r, None).unwrap();

@@ -252,13 +252,12 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     // Each commissioned specimen's errors, whether its surface grows with the gap, and the
     // 99 % interval the converter's noise leaves the open stop's inductance, relative.
     let mut errors: Vec<(commissioning::Errors, bool, f64)> = Vec::new();
-    let coverage = 0.5 * commissioning::coverage_factor(usize::MAX);
     for (k, o) in outcomes.iter().enumerate() {
         match (o.report, o.errors()) {
             (Ok(r), Some(e)) => errors.push((
                 e,
                 draw(args.seed, k).growth_share > 0.0,
-                coverage * commissioning::stop_uncertainty(&r, &a)[0],
+                commissioning::open_stop_interval(&r, &a),
             )),
             (Err(abort), _) => *endings.entry(abort.name()).or_default() += 1,
             (Ok(_), None) => {}

@@ -49,7 +49,7 @@ pub fn stop_uncertainty(report: &Report, a: &Actuator) -> [f64; 2] {
 #[must_use]
 pub fn open_stop(report: &Report, a: &Actuator) -> (f64, f64) {
     let [open, _] = stop_uncertainty(report, a);
-    let coverage = 0.5 * coverage_factor(usize::MAX);
+    let coverage = interval_per_two_se();
     let surface = f64::from(a.tolerance.surface);
     match a.time_scales() {
         Ok(t) if coverage * open > surface => (
@@ -58,6 +58,19 @@ pub fn open_stop(report: &Report, a: &Actuator) -> (f64, f64) {
         ),
         _ => (f64::from(report.inductance.open_h), open),
     }
+}
+
+/// A 99 % interval ([`coverage_factor`]) per unit of two standard errors.
+fn interval_per_two_se() -> f64 {
+    0.5 * coverage_factor(usize::MAX)
+}
+
+/// The 99 % interval ([`coverage_factor`]) of the open stop's inductance the
+/// commissioning's `report` read for the file `a`, relative: what [`open_stop`] judges the
+/// reading by.
+#[must_use]
+pub fn open_stop_interval(report: &Report, a: &Actuator) -> f64 {
+    interval_per_two_se() * stop_uncertainty(report, a)[0]
 }
 
 /// How much better, in standard deviations, a surface growing with the gap must explain

@@ -47,7 +47,8 @@ mod spring;
 
 pub use armature::{fit_armature, Armature, SETTLED_SHARE, STOP_SHARE};
 pub use circuit::{
-    open_stop, stop_uncertainty, Circuit, GROWTH_MAX, GROWTH_SIGNIFICANCE, STOP_INDUCTANCE_CLASS,
+    open_stop, open_stop_interval, stop_uncertainty, Circuit, GROWTH_MAX, GROWTH_SIGNIFICANCE,
+    STOP_INDUCTANCE_CLASS,
 };
 pub use holds::{
     decimations, hold_tuning, mechanics, Holding, Holds, Mechanics, HOLD_ATTEMPTS,

@@ -350,6 +350,109 @@ fn the_spring_its_preload_and_the_mass_are_measured_from_closed_loop_holds() {
     }
 }
 
+/// A hold's inductance on a coil as fast as the period (its time constant 0.8 of it), its
+/// current read one period late with noise, under a loop that steps it between two levels:
+/// each of 300 noise realisations is read, and the uncertainty the converters' noise leaves
+/// the estimate, carried through it, is what the realisations scatter. Stated for four
+/// times the noise the readings carry (so that it, not the cycles' scatter, is the
+/// uncertainty), it is four times their standard deviation within 15 %.
+#[test]
+fn a_fast_coil_s_hold_is_read_with_the_uncertainty_its_noise_leaves() {
+    use hil_sim::identification::commissioning as c;
+    use rand::SeedableRng;
+    use rand_distr::Distribution;
+    let seed = 0x4e_u64;
+    eprintln!("seed {seed:#x}");
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let sigma = 0.004;
+    let noise = rand_distr::Normal::new(0.0, sigma).unwrap();
+    let (ts, r) = (1e-4_f64, 2.0_f64);
+    let l = 0.8 * ts * r;
+    let a = (-ts * r / l).exp();
+    let probe = hil_sim::simulation::scenario::InductanceProbe {
+        at_s: 0.0,
+        amplitude_a: 0.1,
+        half_ticks: c::HOLD_PROBE_HALF_TICKS,
+        cycles: c::HOLD_PROBE_CYCLES,
+    };
+    let half = usize::from(probe.half_ticks);
+    let span = c::probe_capture(probe.ticks(), 1);
+    let (_, file) = hil_sim::simulation::actuator::load("product").unwrap();
+    // Both stops at the coil's inductance: no flux gradient, no motion to take out.
+    let report = ema::device::commission::Report {
+        resistance: ema::device::commission::Resistance {
+            ohm: r as f32,
+            ..Default::default()
+        },
+        ends: ema::device::commission::Ends {
+            open_m: 0.0,
+            closed_m: file.mechanics.stroke_m,
+            uncertainty_m: 0.0,
+        },
+        inductance: ema::device::commission::Inductance {
+            open_h: l as f32,
+            closed_h: l as f32,
+        },
+    };
+    let line = c::Circuit::through_stops(&report, &file);
+    let stated = c::ChannelNoise {
+        current_a: 4.0 * sigma,
+        position_m: 0.0,
+        vbus_v: 0.0,
+    };
+    let mut capture = || -> Vec<c::ProbeSample> {
+        // `cur[k]`: the true current at tick k; `read`: the reading tick k gets, that of
+        // tick k - 1, with noise.
+        let (mut cur, mut read) = (2.0_f64, 2.0_f64);
+        (0..span)
+            .map(|k| {
+                let up = (k / half) % 2 == 0;
+                let target = if up { 2.1 } else { 1.9 };
+                let drive = r * target + 0.5 * (target - read) * l / ts;
+                let q = c::ProbeSample {
+                    y_m: 0.5 * f64::from(file.mechanics.stroke_m),
+                    u_v: drive,
+                    i_a: read,
+                    vbus_v: 24.0,
+                };
+                read = cur + noise.sample(&mut rng);
+                cur = a * cur + (1.0 - a) * drive / r;
+                q
+            })
+            .collect()
+    };
+    let reads: Vec<c::HoldInductance> = (0..300)
+        .map(|_| {
+            let runs: Vec<Vec<c::ProbeSample>> =
+                (0..c::HOLD_PROBE_RUNS).map(|_| capture()).collect();
+            c::hold_inductance(&runs, &probe, 1, ts, &report, line, stated)
+                .expect("a fast coil's hold is read")
+        })
+        .collect();
+    #[expect(clippy::cast_precision_loss)]
+    let n = reads.len() as f64;
+    let mean = reads.iter().map(|h| h.inductance_h).sum::<f64>() / n;
+    let sd = (reads
+        .iter()
+        .map(|h| (h.inductance_h - mean).powi(2))
+        .sum::<f64>()
+        / (n - 1.0))
+        .sqrt();
+    let stated_se = reads.iter().map(|h| 0.5 * h.uncertainty_h).sum::<f64>() / n;
+    eprintln!(
+        "mean {:+.2} % off, spread {:.2} %, stated for 4x the noise {:.2} % (ratio {:.3})",
+        100.0 * (mean / l - 1.0),
+        100.0 * sd / l,
+        100.0 * stated_se / l,
+        stated_se / (4.0 * sd)
+    );
+    assert!((mean / l - 1.0).abs() < 0.01, "{mean} against {l}");
+    assert!(
+        (stated_se / (4.0 * sd) - 1.0).abs() < 0.15,
+        "stated {stated_se} against 4 x {sd}"
+    );
+}
+
 /// The inductance probe's estimate on a coil whose every period is known exactly
 /// (`i(k+1) = a i(k) + (1 - a) u(k) / R`), its current read one period late with noise,
 /// under a loop that steps it between two levels without settling, the bridge dropping

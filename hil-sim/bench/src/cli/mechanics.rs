@@ -61,6 +61,7 @@ pub(super) fn measure_mechanics<P: Port>(
             1.0 / plan.rate_hz,
             report,
             line,
+            hil_sim::identification::commissioning::ChannelNoise::of(file),
         )
     });
     print_inductances(out, plan.stroke_m, &inductances)?;
@@ -345,10 +346,8 @@ fn print_inductances(
                 sig(h.x_m * 1e3, 4)
             ),
             None => format!(
-                "not read at the hold at {} mm (the current did not step, or the probes' \
-                 uncertainty above {} %)",
+                "not read at the hold at {} mm (the current did not step)",
                 sig(f * stroke_m * 1e3, 3),
-                100.0 * hil_sim::identification::commissioning::HOLD_PROBE_MAX_UNCERTAINTY
             ),
         };
         writeln!(out, "  inductance {line}")?;

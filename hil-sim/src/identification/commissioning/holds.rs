@@ -7,7 +7,7 @@ use ema::device::commission::Report;
 
 use super::{
     fit_armature, fit_spring, hold_inductance, hold_probe, measured, probe_capture, pull, Armature,
-    Circuit, HoldInductance, ProbeSample, Specimen, Spring, HOLD_PROBE_RUNS,
+    ChannelNoise, Circuit, HoldInductance, ProbeSample, Specimen, Spring, HOLD_PROBE_RUNS,
 };
 use crate::simulation::plant::Params;
 use crate::simulation::scenario::{Sensors, TruePlant};
@@ -31,9 +31,8 @@ pub struct Mechanics {
     /// The mass and the friction ([`fit_armature`]).
     pub armature: Option<Armature>,
     /// The inductance at each hold, from its probe
-    /// ([`probe_inductance`](super::probe_inductance)); none where no probe ran or its
-    /// uncertainty exceeds
-    /// [`HOLD_PROBE_MAX_UNCERTAINTY`](super::HOLD_PROBE_MAX_UNCERTAINTY).
+    /// ([`hold_inductance`](super::hold_inductance)); none where no probe ran or read
+    /// one.
     pub inductances: [Option<HoldInductance>; crate::simulation::actuator::SEQUENCE.len()],
     /// The magnetic circuit fitted to the stops' inductances and the holds'
     /// ([`Circuit::fit`]): the pull the spring and the mass are read with.
@@ -377,6 +376,7 @@ pub(super) fn hold_once(
     // A probe that latched a fault, or ran after one, reads nothing.
     let faulted_at = probed.samples.iter().position(|s| s.fault.is_some());
     let line = Circuit::through_stops(report, a);
+    let noise = ChannelNoise::of(a);
     let inductances = core::array::from_fn(|k| {
         let end = probe_at(k, HOLD_PROBE_RUNS - 1) + span;
         if faulted_at.is_some_and(|f| f < end) {
@@ -397,7 +397,7 @@ pub(super) fn hold_once(
                 )
             })
             .collect::<Option<Vec<_>>>()?;
-        hold_inductance(&runs, &probe, delay, 1.0 / rate, report, line)
+        hold_inductance(&runs, &probe, delay, 1.0 / rate, report, line, noise)
     });
     let probes = crate::simulation::actuator::SEQUENCE.len() * HOLD_PROBE_RUNS * span;
     let took_s = (run.samples.len() + probes) as f64 / rate;

@@ -56,9 +56,8 @@ pub use holds::{
 };
 pub use measured::{coverage_factor, fitted_tolerance, measured, CONVERTER_SCALE, IRON_SHARE};
 pub use probe::{
-    hold_inductance, hold_probe, probe_capture, probe_inductance, HoldInductance, ProbeSample,
-    HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_MAX_UNCERTAINTY, HOLD_PROBE_RUNS,
-    HOLD_PROBE_SHARE,
+    hold_inductance, hold_probe, probe_capture, probe_inductance, ChannelNoise, HoldInductance,
+    ProbeSample, HOLD_PROBE_CYCLES, HOLD_PROBE_HALF_TICKS, HOLD_PROBE_RUNS, HOLD_PROBE_SHARE,
 };
 pub use run::{
     closed_loop, curve_error, largest_spread, run, run_on, stops_correction, true_plant,

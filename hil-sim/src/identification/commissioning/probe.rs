@@ -21,10 +21,6 @@ pub const HOLD_PROBE_SHARE: f64 = 0.05;
 /// moves under it; longer ones let it follow the wave, and its motion biases the reading.
 pub const HOLD_PROBE_HALF_TICKS: u16 = 16;
 
-/// Largest uncertainty (two standard errors, relative) of an inductance a hold's probe
-/// reads for it to count as read: a wider one is a hold the armature did not keep still.
-pub const HOLD_PROBE_MAX_UNCERTAINTY: f64 = 0.03;
-
 /// Cycles of each of the hold's probes (up and down): as many as the board's capture
 /// holds at every tick with the converter's delay and a tick after them
 /// ([`probe_capture`]); [`HOLD_PROBE_RUNS`] probes per hold.
@@ -201,15 +197,56 @@ pub struct HoldInductance {
     pub uncertainty_h: f64,
 }
 
+/// The converters' noise on the three channels a probe reads, RMS, each in its channel's
+/// unit: what [`hold_inductance`] carries through its estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChannelNoise {
+    /// On the current reading \[A\].
+    pub current_a: f64,
+    /// On the position reading \[m\].
+    pub position_m: f64,
+    /// On the bus reading \[V\].
+    pub vbus_v: f64,
+}
+
+impl ChannelNoise {
+    /// The board's noise ([`ema::control::sense::NOISE_RMS_CODES`]) on each channel of the
+    /// actuator file `a`'s calibration.
+    #[must_use]
+    pub fn of(a: &Actuator) -> Self {
+        let c = a.calibration();
+        let rms = |scale: f32| f64::from(ema::control::sense::NOISE_RMS_CODES * scale.abs());
+        Self {
+            current_a: rms(c.current.scale),
+            position_m: rms(c.position.scale),
+            vbus_v: rms(c.vbus.scale),
+        }
+    }
+}
+
 /// One hold's inductance from its probes' captures (the board's samples at every tick
 /// from each probe's first), read with [`probe_inductance`] for the `probe`, the
 /// converter `delay` ticks late, the period `ts_s`, the commissioning's `report` and the
 /// `line` through its stops' inductances ([`Circuit::through_stops`]): the mean position
 /// corrected with the end stops the `report` measured, `x = stroke (y - y_open) /
-/// (y_closed - y_open)`, the
-/// inductance and two standard errors of it; `None` when the probes read nothing or
-/// their uncertainty exceeds [`HOLD_PROBE_MAX_UNCERTAINTY`]. The same reading on the bench
-/// and in [`mechanics`](super::mechanics).
+/// (y_closed - y_open)`, the inductance and two standard errors of it; `None` when the
+/// probes read nothing or the converters' noise carries the reading out of the
+/// estimate's domain. The same reading on the bench and in
+/// [`mechanics`](super::mechanics).
+///
+/// **Its uncertainty** is the larger of two: the scatter of the probes' cycles
+/// ([`probe_inductance`]), and what the converters' `noise` alone leaves the estimate,
+/// each reading's noise carried through it to first order (its derivative by each
+/// reading, taken by differences) and summed in quadrature. On a coil whose time constant
+/// is about the period, the current settles within a level and the estimate of `exp(-Ts
+/// R / L)` rests on little: the noise leaves a few per cent, which the scatter of the
+/// cycles reads only within a fifth or so either way, and the prediction keeps a
+/// scatter that came out small from making the reading look surer than it is. A reading
+/// is not dropped for being uncertain: the circuit's fit weighs each by its uncertainty
+/// ([`Circuit::fit`]), and the surface's tolerance written carries the least certain
+/// ([`measured`](super::measured)). A fixed ceiling on the uncertainty (3 %) had
+/// dropped the open side's hold of a coil as fast as the period on 30 of 100
+/// commissionings, the converter's noise taken for an armature that did not keep still.
 ///
 /// Two things the coil sees besides its inductance are taken out first:
 /// - **The supply's sag.** The bridge sets its duty for the bus it last read, but over
@@ -230,51 +267,143 @@ pub fn hold_inductance(
     ts_s: f64,
     report: &Report,
     line: Circuit,
+    noise: ChannelNoise,
 ) -> Option<HoldInductance> {
-    let ticks = probe.ticks();
-    let position = corrected(report, line.stroke_m);
-    let split: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = runs
-        .iter()
-        .map(|s| {
-            let applied = (0..ticks.min(s.len()))
-                .map(|k| {
-                    let (set, after) = (s[k].vbus_v, s.get(k + 1 + delay).map(|q| q.vbus_v));
-                    match after {
-                        Some(after) if set > 0.0 => s[k].u_v * after / set,
-                        _ => s[k].u_v,
-                    }
-                })
-                .collect();
-            (
-                applied,
-                s.iter().map(|q| q.i_a).collect(),
-                s.iter().map(|q| position(q.y_m)).collect(),
-            )
-        })
-        .collect();
-    let slices: Vec<(&[f64], &[f64], &[f64])> = split
-        .iter()
-        .map(|(u, i, x)| (u.as_slice(), i.as_slice(), x.as_slice()))
-        .collect();
-    let (n, i_sum, y_sum) = runs
-        .iter()
-        .flat_map(|s| s.iter().take(ticks))
-        .fold((0.0, 0.0, 0.0), |(n, i, y), q| {
-            (n + 1.0, i + q.i_a, y + q.y_m)
-        });
-    let x = position(y_sum / n);
-    let r_ohm = f64::from(report.resistance.ohm);
-    let (l, uncertainty) = probe_inductance(
-        &slices,
-        (i_sum / n) * line.force_coefficient_h_per_m(x) / r_ohm,
-        usize::from(probe.half_ticks),
+    let read = HoldReading {
+        probe,
         delay,
         ts_s,
-        r_ohm,
-    )?;
-    (uncertainty < HOLD_PROBE_MAX_UNCERTAINTY * l).then_some(HoldInductance {
+        report,
+        line,
+    };
+    let (x, motion) = read.position_and_motion(runs)?;
+    let (l, scatter) = read.inductance(runs, motion)?;
+    let from_noise = read.noise_uncertainty(runs, motion, l, noise);
+    // A reading that a hundredth of the noise carries out of the estimate's domain
+    // (`exp(-Ts R / L)` at 0 or 1) says nothing.
+    if from_noise.is_nan() {
+        return None;
+    }
+    let uncertainty = scatter.max(from_noise);
+    Some(HoldInductance {
         x_m: x,
         inductance_h: l,
         uncertainty_h: uncertainty,
     })
+}
+
+/// One channel's reading of a [`ProbeSample`], to be moved.
+type Reading = fn(&mut ProbeSample) -> &mut f64;
+
+/// What [`hold_inductance`] reads a hold's probes with.
+struct HoldReading<'a> {
+    probe: &'a crate::simulation::scenario::InductanceProbe,
+    delay: usize,
+    ts_s: f64,
+    report: &'a Report,
+    line: Circuit,
+}
+
+impl HoldReading<'_> {
+    /// The hold's mean position, corrected with the end stops, and the coefficient of the
+    /// armature's motion for [`probe_inductance`]; `None` without samples.
+    fn position_and_motion(&self, runs: &[Vec<ProbeSample>]) -> Option<(f64, f64)> {
+        let position = corrected(self.report, self.line.stroke_m);
+        let (n, i_sum, y_sum) = runs
+            .iter()
+            .flat_map(|s| s.iter().take(self.probe.ticks()))
+            .fold((0.0, 0.0, 0.0), |(n, i, y), q| {
+                (n + 1.0, i + q.i_a, y + q.y_m)
+            });
+        if n == 0.0 {
+            return None;
+        }
+        let x = position(y_sum / n);
+        let r_ohm = f64::from(self.report.resistance.ohm);
+        Some((
+            x,
+            (i_sum / n) * self.line.force_coefficient_h_per_m(x) / r_ohm,
+        ))
+    }
+
+    /// The inductance and the scatter of its cycles ([`probe_inductance`]), the drive
+    /// scaled by the bus's sag, the positions corrected with the end stops.
+    fn inductance(&self, runs: &[Vec<ProbeSample>], motion: f64) -> Option<(f64, f64)> {
+        let ticks = self.probe.ticks();
+        let delay = self.delay;
+        let position = corrected(self.report, self.line.stroke_m);
+        let split: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = runs
+            .iter()
+            .map(|s| {
+                let applied = (0..ticks.min(s.len()))
+                    .map(|k| {
+                        let (set, after) = (s[k].vbus_v, s.get(k + 1 + delay).map(|q| q.vbus_v));
+                        match after {
+                            Some(after) if set > 0.0 => s[k].u_v * after / set,
+                            _ => s[k].u_v,
+                        }
+                    })
+                    .collect();
+                (
+                    applied,
+                    s.iter().map(|q| q.i_a).collect(),
+                    s.iter().map(|q| position(q.y_m)).collect(),
+                )
+            })
+            .collect();
+        let slices: Vec<(&[f64], &[f64], &[f64])> = split
+            .iter()
+            .map(|(u, i, x)| (u.as_slice(), i.as_slice(), x.as_slice()))
+            .collect();
+        probe_inductance(
+            &slices,
+            motion,
+            usize::from(self.probe.half_ticks),
+            delay,
+            self.ts_s,
+            f64::from(self.report.resistance.ohm),
+        )
+    }
+
+    /// Two standard errors of the inductance `l` read from `runs` that the converters'
+    /// `noise` alone leaves: each reading moved by a hundredth of its channel's noise,
+    /// the estimate's change over the move times the noise, summed in quadrature over
+    /// every reading of the three channels. The motion's coefficient is held (its share
+    /// of the noise is of second order).
+    fn noise_uncertainty(
+        &self,
+        runs: &[Vec<ProbeSample>],
+        motion: f64,
+        l: f64,
+        noise: ChannelNoise,
+    ) -> f64 {
+        let channels: [(f64, Reading); 3] = [
+            (noise.current_a, |q| &mut q.i_a),
+            (noise.position_m, |q| &mut q.y_m),
+            (noise.vbus_v, |q| &mut q.vbus_v),
+        ];
+        let mut moved = runs.to_vec();
+        let mut variance = 0.0;
+        for (sigma, reading) in channels {
+            if sigma <= 0.0 {
+                continue;
+            }
+            let step = 0.01 * sigma;
+            for r in 0..moved.len() {
+                for k in 0..moved[r].len() {
+                    let Some(q) = moved.get_mut(r).and_then(|s| s.get_mut(k)) else {
+                        continue;
+                    };
+                    let was = *reading(q);
+                    *reading(q) = was + step;
+                    let changed = self.inductance(&moved, motion).map_or(f64::NAN, |m| m.0);
+                    if let Some(q) = moved.get_mut(r).and_then(|s| s.get_mut(k)) {
+                        *reading(q) = was;
+                    }
+                    variance += ((changed - l) / step * sigma).powi(2);
+                }
+            }
+        }
+        2.0 * variance.sqrt()
+    }
 }

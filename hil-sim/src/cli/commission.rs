@@ -84,6 +84,9 @@ struct MechanicsErrors {
     friction_damping: f64,
     /// The largest inductance error over the holds' probes.
     held: f64,
+    /// The largest over the holds' probes of the error, against the true inductance in
+    /// the converters' units ([`Specimen::channel_factor`]), over its 99 % interval.
+    held_over_interval: f64,
     /// The inductance curve's over the stroke, of the circuit fitted with the holds.
     fitted: f64,
     /// The tolerances the file written carries (NaN: no file written).
@@ -97,7 +100,7 @@ type MechanicsRow = (&'static str, Option<f64>, fn(&MechanicsErrors) -> f64);
 /// The holds' rows. The file's tolerances are judged against the true errors: an error
 /// over its tolerance is a plant `tune` never validated on and the controller's robust
 /// model does not cover.
-const MECHANICS: [MechanicsRow; 14] = [
+const MECHANICS: [MechanicsRow; 15] = [
     ("spring rate error [%]", None, |e| 100.0 * e.spring),
     ("spring rate tolerance written [%]", None, |e| {
         100.0 * f64::from(e.tolerance.spring)
@@ -128,6 +131,11 @@ const MECHANICS: [MechanicsRow; 14] = [
     ("inductance error at the holds [%]", Some(5.0), |e| {
         100.0 * e.held
     }),
+    (
+        "same, in the converters' units, over its 99 % interval",
+        Some(1.0),
+        |e| e.held_over_interval,
+    ),
     (
         "inductance error over the stroke, fitted [%]",
         Some(5.0),
@@ -164,7 +172,7 @@ fn commission(
     };
     let holding = commissioning::mechanics(a, &r, &plant, Some(&draw))?;
     let mechanics = holding.mechanics.as_ref();
-    let errors = mechanics.map(|m| mechanics_errors(a, &r, m, &plant));
+    let errors = mechanics.map(|m| mechanics_errors(a, &r, m, &plant, &draw));
     let closed = if args.tune {
         Some(commissioning::closed_loop(
             a,
@@ -187,12 +195,14 @@ fn draw(seed: u64, k: usize) -> Specimen {
 }
 
 /// What the holds `m` of a commissioning whose routine reported `r` read wrong on the
-/// true `plant`, and the tolerances the file written with them carries.
+/// true `plant` with the converters of `draw`, and the tolerances the file written with
+/// them carries.
 fn mechanics_errors(
     a: &ema::control::actuator::Actuator,
     r: &ema::device::commission::Report,
     m: &commissioning::Mechanics,
     plant: &crate::simulation::plant::Params,
+    draw: &Specimen,
 ) -> MechanicsErrors {
     // Relative mass and friction errors (NaN: no move fitted).
     let (mass, friction) = m.armature.map_or((f64::NAN, f64::NAN), |arm| {
@@ -207,6 +217,17 @@ fn mechanics_errors(
         .inductance_errors(plant)
         .iter()
         .fold(0.0, |w, e| crate::simulation::targets::worse(w, e.abs()));
+    let held_over_interval =
+        m.inductances
+            .iter()
+            .zip(m.inductance_errors(plant))
+            .fold(0.0, |w, (h, e)| {
+                let over = h.map_or(f64::NAN, |h| {
+                    ((1.0 + e) / draw.channel_factor() - 1.0).abs()
+                        / (h.interval_h() / h.inductance_h)
+                });
+                crate::simulation::targets::worse(w, over)
+            });
     // The circuit and the tolerances the file written with the holds carries.
     let file = commissioning::measured(a, r, Some(m)).map(|(f, _)| f);
     let fitted = file
@@ -231,6 +252,7 @@ fn mechanics_errors(
         friction,
         friction_damping: friction * plant.friction_n_s_per_m / critical,
         held,
+        held_over_interval,
         fitted,
         tolerance,
     }

@@ -61,7 +61,7 @@ pub fn open_stop(report: &Report, a: &Actuator) -> (f64, f64) {
 }
 
 /// A 99 % interval ([`coverage_factor`]) per unit of two standard errors.
-fn interval_per_two_se() -> f64 {
+pub(super) fn interval_per_two_se() -> f64 {
     0.5 * coverage_factor(usize::MAX)
 }
 

@@ -197,6 +197,15 @@ pub struct HoldInductance {
     pub uncertainty_h: f64,
 }
 
+impl HoldInductance {
+    /// Half the 99 % interval of the inductance ([`coverage_factor`](super::coverage_factor)
+    /// per two standard errors, as the stops' and the circuit's) \[H\].
+    #[must_use]
+    pub fn interval_h(&self) -> f64 {
+        super::circuit::interval_per_two_se() * self.uncertainty_h
+    }
+}
+
 /// The converters' noise on the three channels a probe reads, RMS, each in its channel's
 /// unit: what [`hold_inductance`] carries through its estimate.
 #[derive(Clone, Copy, Debug, PartialEq)]

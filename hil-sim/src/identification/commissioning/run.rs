@@ -145,6 +145,20 @@ impl Specimen {
         out
     }
 
+    /// The factor the converters' gains put on a resistance or an inductance the board
+    /// reads \[-\]: `(1 + bus gain error) / (1 + current gain error)`. The bridge sets its
+    /// duty for the bus as read, so the voltage it applies is the drive set over `1 + bus
+    /// gain error`, and the current is read `1 + current gain error` times too large:
+    /// `R = du / di` from the drive set and the current read carries the factor, and so
+    /// does every inductance read with that `R` (a decay's or a probe's `-Ts R / ln a`).
+    /// The controller runs in the same units, so these are what it needs; the physical
+    /// values differ by the converters' scale, which the tolerances written carry
+    /// ([`super::CONVERTER_SCALE`]).
+    #[must_use]
+    pub fn channel_factor(&self) -> f64 {
+        (1.0 + self.vbus.gain_error) / (1.0 + self.current.gain_error)
+    }
+
     /// The position sensor's gain error \[-\] and offset \[code\] for a stroke of `stroke_m`
     /// read in codes of `code_m`.
     #[must_use]

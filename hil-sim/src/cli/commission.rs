@@ -213,21 +213,16 @@ fn mechanics_errors(
     });
     let critical = 2.0 * (plant.spring_n_per_m * plant.mass_kg).sqrt();
     // The largest over the holds (NaN: a probe read nothing).
-    let held = m
-        .inductance_errors(plant)
+    let errors = m.inductance_errors(plant);
+    let held = errors
         .iter()
         .fold(0.0, |w, e| crate::simulation::targets::worse(w, e.abs()));
-    let held_over_interval =
-        m.inductances
-            .iter()
-            .zip(m.inductance_errors(plant))
-            .fold(0.0, |w, (h, e)| {
-                let over = h.map_or(f64::NAN, |h| {
-                    ((1.0 + e) / draw.channel_factor() - 1.0).abs()
-                        / (h.interval_h() / h.inductance_h)
-                });
-                crate::simulation::targets::worse(w, over)
-            });
+    let held_over_interval = m.inductances.iter().zip(errors).fold(0.0, |w, (h, e)| {
+        let over = h.map_or(f64::NAN, |h| {
+            ((1.0 + e) / draw.channel_factor() - 1.0).abs() / (h.interval_h() / h.inductance_h)
+        });
+        crate::simulation::targets::worse(w, over)
+    });
     // The circuit and the tolerances the file written with the holds carries.
     let file = commissioning::measured(a, r, Some(m)).map(|(f, _)| f);
     let fitted = file

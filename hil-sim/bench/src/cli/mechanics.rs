@@ -346,7 +346,8 @@ fn print_inductances(
                 sig(h.x_m * 1e3, 4)
             ),
             None => format!(
-                "not read at the hold at {} mm (the current did not step)",
+                "not read at the hold at {} mm (the current did not step, or the noise carries the \
+                 reading out of its domain)",
                 sig(f * stroke_m * 1e3, 3),
             ),
         };

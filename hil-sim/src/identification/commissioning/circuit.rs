@@ -29,8 +29,10 @@ pub const STOP_INDUCTANCE_CLASS: f64 = 0.01;
 /// this prediction's standard error is 1.0 to 1.2 in each band of time constants (drawn
 /// plants and converters, `hil-sim commission`'s draws).
 #[must_use]
+#[expect(clippy::cast_possible_truncation)]
 pub fn stop_uncertainty(report: &Report, a: &Actuator) -> [f64; 2] {
-    let noise_a = ema::control::sense::NOISE_RMS_CODES * a.calibration().current.scale;
+    // An f32 widened and narrowed again: the same value.
+    let noise_a = super::ChannelNoise::of(a).current_a as f32;
     let predicted = ema::device::commission::Plan::for_actuator(a, a.board.rate_hz)
         .map_or([f32::NAN; 2], |plan| {
             plan.inductance_uncertainty(report, noise_a)

@@ -161,8 +161,7 @@ pub fn measured(
             .flatten()
             .map(|h| h.uncertainty_h / h.inductance_h)
             .fold(super::STOP_INDUCTANCE_CLASS, f64::max)
-            * 0.5
-            * coverage_factor(usize::MAX);
+            * super::circuit::interval_per_two_se();
         let fitted = CONVERTER_SCALE + d.max(least_certain);
         a.tolerance.surface = a
             .tolerance

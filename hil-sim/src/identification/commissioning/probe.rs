@@ -400,15 +400,10 @@ impl HoldReading<'_> {
             let step = 0.01 * sigma;
             for r in 0..moved.len() {
                 for k in 0..moved[r].len() {
-                    let Some(q) = moved.get_mut(r).and_then(|s| s.get_mut(k)) else {
-                        continue;
-                    };
-                    let was = *reading(q);
-                    *reading(q) = was + step;
+                    let was = *reading(&mut moved[r][k]);
+                    *reading(&mut moved[r][k]) = was + step;
                     let changed = self.inductance(&moved, motion).map_or(f64::NAN, |m| m.0);
-                    if let Some(q) = moved.get_mut(r).and_then(|s| s.get_mut(k)) {
-                        *reading(q) = was;
-                    }
+                    *reading(&mut moved[r][k]) = was;
                     variance += ((changed - l) / step * sigma).powi(2);
                 }
             }

@@ -185,6 +185,13 @@ impl Specimen {
             for s in &mut p.gaps {
                 *s = grown(*s, self.growth_share, surface_tolerance, gaps);
             }
+        }
+        // A real magnet pulls with `-dL/dg`, whatever its file: a surface that grows with
+        // the gap, drawn so or the file's own, pulls with its growth included.
+        if p.gaps
+            .iter()
+            .any(|s| matches!(s, Surface::Rectangular { spread, .. } if *spread > 0.0))
+        {
             p.force = ForceModel::EnergyConsistent;
         }
         p.resistance_ohm *= r;

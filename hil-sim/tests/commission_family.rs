@@ -577,8 +577,9 @@ const LIGHT_SEED: u64 = 38;
 /// A drawn product 21 % lighter than its file with 48 % less friction (damping ratio 0.42
 /// against the file's 0.72): the actuator its commissioning writes carries the mass's
 /// tolerances its measurement leaves
-/// ([`hil_sim::identification::commissioning::fitted_tolerance`]): the mass's and the
-/// friction's narrower than the file's 10 % and 50 %, the surfaces' than its 20 %, each
+/// ([`hil_sim::identification::commissioning::fitted_tolerance`] plus the circuit's share
+/// of the surface tolerance, the pull's uncertainty): the mass's narrower than the file's
+/// 10 %, the friction's than half its 50 %, the surfaces' than a quarter of its 20 %, each
 /// holding the true error; tuned for it, it meets every target on its true plant.
 #[test]
 fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves() {
@@ -604,8 +605,37 @@ fn a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_l
         100.0 * curve
     );
     assert!(
-        mass.abs() <= f64::from(t.mass) && t.mass < 0.5 * a.tolerance.mass,
+        mass.abs() <= f64::from(t.mass) && t.mass < a.tolerance.mass,
         "{t:?}"
+    );
+    // The mass's: the fit's own and the pull's share of the surface tolerance.
+    let arm = m.armature.unwrap();
+    let own = hil_sim::identification::commissioning::fitted_tolerance(
+        arm.mass_kg,
+        arm.mass_uncertainty_kg,
+        arm.moves - 1,
+    );
+    let pull = f64::from(t.surface) - hil_sim::identification::commissioning::CONVERTER_SCALE;
+    eprintln!("mass: the fit's own {own:.4}, the pull's {pull:.4}");
+    assert!(
+        (f64::from(t.mass) - (own + pull)).abs() < 1e-6,
+        "{t:?} {own} {pull}"
+    );
+    // A mass read with two standard errors as large as itself: its 99 % interval reaches
+    // zero, it has not been measured, and the file keeps its own mass and tolerance.
+    let mut vague = m;
+    if let Some(arm) = vague.armature.as_mut() {
+        arm.mass_uncertainty_kg = arm.mass_kg;
+    }
+    let (kept, _) =
+        hil_sim::identification::commissioning::measured(&a, &d.report, Some(&vague)).unwrap();
+    assert_eq!(
+        (kept.mechanics.mass_kg, kept.tolerance.mass),
+        (a.mechanics.mass_kg, a.tolerance.mass)
+    );
+    assert_eq!(
+        kept.mechanics.friction_n_s_per_m,
+        measured.mechanics.friction_n_s_per_m
     );
     assert!(
         friction.abs() <= f64::from(t.friction) && t.friction < 0.5 * a.tolerance.friction,

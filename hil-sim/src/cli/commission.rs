@@ -91,6 +91,15 @@ struct MechanicsErrors {
     fitted: f64,
     /// The tolerances the file written carries (NaN: no file written).
     tolerance: Tolerances,
+    /// How far the true spring's rate, mass and friction lie from the value the file
+    /// written carries, relative to it (the measured value where the measurement wrote
+    /// it, the file's own where it did not: [`commissioning::measured`]), as a tolerance
+    /// reads it: the plant is inside the file's set when this is within the tolerance;
+    /// NaN: no file written.
+    written: [f64; 3],
+    /// Whether the file written carries the measured spring's rate, mass and friction
+    /// (not its own: the measurement's 99 % interval did not reach zero).
+    measured: [bool; 3],
 }
 
 /// A row of [`MECHANICS`]: its label, its target in the label's unit (none: reported
@@ -105,9 +114,11 @@ const MECHANICS: [MechanicsRow; 15] = [
     ("spring rate tolerance written [%]", None, |e| {
         100.0 * f64::from(e.tolerance.spring)
     }),
-    ("spring rate error / its tolerance", Some(1.0), |e| {
-        e.spring / f64::from(e.tolerance.spring)
-    }),
+    (
+        "spring rate written, error / its tolerance",
+        Some(1.0),
+        |e| e.written[0] / f64::from(e.tolerance.spring),
+    ),
     ("preload error [% of K x stroke]", None, |e| {
         100.0 * e.preload
     }),
@@ -115,8 +126,8 @@ const MECHANICS: [MechanicsRow; 15] = [
     ("mass tolerance written [%]", None, |e| {
         100.0 * f64::from(e.tolerance.mass)
     }),
-    ("mass error / its tolerance", Some(1.0), |e| {
-        e.mass / f64::from(e.tolerance.mass)
+    ("mass written, error / its tolerance", Some(1.0), |e| {
+        e.written[1] / f64::from(e.tolerance.mass)
     }),
     ("friction error [%]", None, |e| 100.0 * e.friction),
     ("friction error [% of the critical damping]", None, |e| {
@@ -125,8 +136,8 @@ const MECHANICS: [MechanicsRow; 15] = [
     ("friction tolerance written [%]", None, |e| {
         100.0 * f64::from(e.tolerance.friction)
     }),
-    ("friction error / its tolerance", Some(1.0), |e| {
-        e.friction / f64::from(e.tolerance.friction)
+    ("friction written, error / its tolerance", Some(1.0), |e| {
+        e.written[2] / f64::from(e.tolerance.friction)
     }),
     ("inductance error at the holds [%]", Some(5.0), |e| {
         100.0 * e.held
@@ -230,6 +241,20 @@ fn mechanics_errors(
         .ok()
         .and_then(|f| commissioning::curve_error(f, plant).ok())
         .unwrap_or(f64::NAN);
+    let written = file.as_ref().map_or([f64::NAN; 3], |f| {
+        [
+            plant.spring_n_per_m / f64::from(f.mechanics.spring_n_per_m) - 1.0,
+            plant.mass_kg / f64::from(f.mechanics.mass_kg) - 1.0,
+            plant.friction_n_s_per_m / f64::from(f.mechanics.friction_n_s_per_m) - 1.0,
+        ]
+    });
+    let measured = file.as_ref().map_or([false; 3], |f| {
+        [
+            f.mechanics.spring_n_per_m != a.mechanics.spring_n_per_m,
+            f.mechanics.mass_kg != a.mechanics.mass_kg,
+            f.mechanics.friction_n_s_per_m != a.mechanics.friction_n_s_per_m,
+        ]
+    });
     let tolerance = file.map_or(
         Tolerances {
             surface: f32::NAN,
@@ -250,6 +275,8 @@ fn mechanics_errors(
         held_over_interval,
         fitted,
         tolerance,
+        written,
+        measured,
     }
 }
 
@@ -410,6 +437,35 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
         mechanics.len() - unfitted,
         named(&attempts_faulted),
         named(&holds_faulted),
+    )?;
+    // Of the values the measurement wrote (`true`) or the file kept: how many, and how
+    // many the true value lies outside the tolerance of.
+    let count = |q: usize, wrote: bool| {
+        let of: Vec<_> = mechanics
+            .iter()
+            .filter(|e| e.measured[q] == wrote)
+            .collect();
+        let tolerance = |e: &MechanicsErrors| match q {
+            0 => e.tolerance.spring,
+            1 => e.tolerance.mass,
+            _ => e.tolerance.friction,
+        };
+        let over = of
+            .iter()
+            .filter(|e| e.written[q].abs() > f64::from(tolerance(e)) || e.written[q].is_nan())
+            .count();
+        format!("{} ({over} over)", of.len())
+    };
+    writeln!(
+        out,
+        "the file written carries the measured spring on {}, mass on {}, friction on {} of the {}; the file's own value and tolerance, where the measurement's 99 % interval reached zero, on {}, {}, {}",
+        count(0, true),
+        count(1, true),
+        count(2, true),
+        mechanics.len(),
+        count(0, false),
+        count(1, false),
+        count(2, false),
     )?;
     Ok(())
 }

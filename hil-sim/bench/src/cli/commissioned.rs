@@ -199,14 +199,16 @@ pub fn actuator_file(
                 .to_owned(),
             |arm| {
                 format!(
-                    "#   mechanics.mass_kg = {}, mechanics.friction_n_s_per_m = {} (the {} moves \
-                     between the holds),\n\
-                     #   tolerance.mass = {}, tolerance.friction = {} (the measurement's, \
-                     where below the file's)\n",
+                    "#   mass {} kg, friction {} N s/m (the {} moves between the holds);\n\
+                     #   mechanics.mass_kg = {}, tolerance.mass = {}, \
+                     mechanics.friction_n_s_per_m = {}, tolerance.friction = {}\n\
+                     #   (the measurement's; the file's where its 99 % interval reaches zero)\n",
                     sig(arm.mass_kg, 4),
                     sig(arm.friction_n_s_per_m, 3),
                     arm.moves,
+                    sig(f64::from(a.mechanics.mass_kg), 4),
                     sig(f64::from(a.tolerance.mass), 3),
+                    sig(f64::from(a.mechanics.friction_n_s_per_m), 3),
                     sig(f64::from(a.tolerance.friction), 3)
                 )
             },
@@ -242,13 +244,16 @@ pub fn actuator_file(
             None => "#   inductance at the holds: no probe read one\n".to_owned(),
         };
         format!(
-            "#   mechanics.spring_n_per_m = {} +- {} (two standard errors of the fit),\n\
-             #   mechanics.preload_n = {} (closed-loop holds at four positions),\n\
-             #   tolerance.spring = {} (the measurement's, where below the file's)\n\
+            "#   spring {} +- {} N/m (two standard errors of the fit), preload {} N\n\
+             #   (closed-loop holds at four positions);\n\
+             #   mechanics.spring_n_per_m = {}, mechanics.preload_n = {}, tolerance.spring = {}\n\
+             #   (the measurement's; the file's where its 99 % interval reaches zero)\n\
              {armature}{inductances}",
             sig(s.n_per_m, 4),
             sig(s.uncertainty_n_per_m, 2),
             sig(s.preload_n, 4),
+            sig(f64::from(a.mechanics.spring_n_per_m), 4),
+            sig(f64::from(a.mechanics.preload_n), 4),
             sig(f64::from(a.tolerance.spring), 3)
         )
     });

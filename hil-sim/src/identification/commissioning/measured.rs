@@ -36,7 +36,8 @@ pub fn coverage_factor(dof: usize) -> f64 {
 /// The relative tolerance a fit leaves on a `value` it read with two standard errors
 /// `uncertainty` on `dof` degrees of freedom: the converters' scale ([`CONVERTER_SCALE`])
 /// plus the fit's 99 % interval ([`coverage_factor`]); NaN where the fit has no
-/// uncertainty (one move: nothing to compare it with), which keeps the file's.
+/// uncertainty (one move: nothing to compare it with), which keeps the file's
+/// ([`measured`]).
 #[must_use]
 pub fn fitted_tolerance(value: f64, uncertainty: f64, dof: usize) -> f64 {
     CONVERTER_SCALE + coverage_factor(dof) * 0.5 * uncertainty / value.abs()
@@ -51,9 +52,8 @@ pub fn fitted_tolerance(value: f64, uncertainty: f64, dof: usize) -> f64 {
 pub const IRON_SHARE: f32 = 1e-6;
 
 /// The actuator a commissioning measured: `file` (the board's) with the measured resistance
-/// and magnetic circuit, the spring, the mass and the friction when measured
-/// ([`mechanics`](super::mechanics); a friction fitted below zero, a light one read through
-/// the noise, is taken as none), the tuning dropped (it was for another actuator); and the
+/// and magnetic circuit, the spring, the mass and the friction where the holds measured
+/// them ([`mechanics`](super::mechanics); below), the tuning dropped (it was for another actuator); and the
 /// factor the two-inductance form's inductances were moved by (below).
 ///
 /// The magnetic circuit: with the holds measured, the one fitted to their inductances and
@@ -64,18 +64,31 @@ pub const IRON_SHARE: f32 = 1e-6;
 /// [`open_stop`](super::open_stop) gives it (the file's where the reading is the less
 /// certain).
 ///
-/// A measured spring, mass and friction carry the tolerance their measurement leaves
-/// ([`fitted_tolerance`]), when it is below the file's: the converters' scale and the
-/// fit's own 99 % interval, the spring's from the scatter of the holds about its line
-/// (two degrees of freedom over the four holds), the mass's and the friction's from their
-/// scatter over the moves (the jackknife, [`fit_armature`](super::fit_armature); one less
-/// degree of freedom than moves). The surfaces, the paper's uncertainty, carry what the
-/// circuit's readings leave: the converters' scale, plus the largest deviation of the
-/// written form from the holds' probes ([`Mechanics::form_deviation`]) or the 99 %
-/// interval of the least certain reading the circuit was fitted to (from two standard
-/// errors of a hold's probe, or [`STOP_INDUCTANCE_CLASS`](super::STOP_INDUCTANCE_CLASS)
-/// at the stops, each read over many samples) where that is larger; never more than the file's unless the probes ask for it. The resistance keeps
-/// the file's: it moves with the coil's temperature.
+/// The surfaces, the paper's uncertainty, carry what the circuit's readings leave: the
+/// converters' scale, plus the largest deviation of the written form from the holds'
+/// probes ([`Mechanics::form_deviation`]) or the 99 % interval of the least certain
+/// reading the circuit was fitted to (from two standard errors of a hold's probe, or
+/// [`STOP_INDUCTANCE_CLASS`](super::STOP_INDUCTANCE_CLASS) at the stops, each read over
+/// many samples) where that is larger; never more than the file's unless the probes ask
+/// for it. The resistance keeps the file's: it moves with the coil's temperature.
+///
+/// A measured spring (with its preload), mass and friction carry the tolerance their
+/// measurement leaves, whether it is narrower or wider than the file's: the file's value
+/// is the one the measurement replaces, so its tolerance says nothing of the measured
+/// one. That tolerance is the fit's own ([`fitted_tolerance`]: the converters' scale and
+/// the fit's 99 % interval, the spring's from the scatter of the holds about its line,
+/// two degrees of freedom over the four holds, the mass's and the friction's from their
+/// scatter over the moves, the jackknife of [`fit_armature`](super::fit_armature), one
+/// less degree of freedom than moves), plus the circuit's share of the surface tolerance
+/// above (the larger of the form's deviation and the least certain reading): each is
+/// read against the pull the circuit gives, and a surface `1 + s` times the written one
+/// pulls `1 + s` times harder at the same gap and current, which scales the spring, the
+/// mass and the friction read against it alike and which no scatter over the holds or
+/// the moves shows. A value whose 99 % interval reaches zero (a tolerance of one or more,
+/// a mass or a friction read at or below zero, a fit with no uncertainty) has not been
+/// told from none: the file keeps its own value and tolerance, as without a fit (a
+/// spring read pushing the wrong way within its interval is written, and refused by the
+/// file's check).
 ///
 /// The two-inductance form is `1/L` linear in the gap, `(rho_x g + rho_0) / N^2`, the
 /// iron's `rho_0` positive. A real circuit's fringing bends the line (the surface grows
@@ -92,29 +105,6 @@ pub fn measured(
 ) -> Result<(Actuator, f32), Error> {
     let mut a = *file;
     a.coil.resistance_ohm = report.resistance.ohm;
-    #[expect(clippy::cast_possible_truncation)]
-    if let Some(m) = mechanics {
-        a.mechanics.spring_n_per_m = m.spring.n_per_m as f32;
-        a.mechanics.preload_n = m.spring.preload_n as f32;
-        let holds = crate::simulation::actuator::SEQUENCE.len();
-        let spring = fitted_tolerance(m.spring.n_per_m, m.spring.uncertainty_n_per_m, holds - 2);
-        a.tolerance.spring = a.tolerance.spring.min(spring as f32);
-        if let Some(arm) = m.armature {
-            let dof = arm.moves.saturating_sub(1);
-            a.mechanics.mass_kg = arm.mass_kg as f32;
-            a.mechanics.friction_n_s_per_m = arm.friction_n_s_per_m.max(0.0) as f32;
-            let mass = fitted_tolerance(arm.mass_kg, arm.mass_uncertainty_kg, dof);
-            a.tolerance.mass = a.tolerance.mass.min(mass as f32);
-            let friction = fitted_tolerance(
-                arm.friction_n_s_per_m,
-                arm.friction_uncertainty_n_s_per_m,
-                dof,
-            );
-            if arm.friction_n_s_per_m > 0.0 {
-                a.tolerance.friction = a.tolerance.friction.min(friction as f32);
-            }
-        }
-    }
     let circuit = mechanics.map(|m| m.circuit);
     let mut moved = 1.0;
     match (circuit, a.magnetics) {
@@ -168,6 +158,47 @@ pub fn measured(
             .surface
             .min(fitted as f32)
             .max((CONVERTER_SCALE + d) as f32);
+        // The pull the spring, the mass and the friction are read against comes from the
+        // circuit, and carries its uncertainty: a surface `1 + s` times the written one
+        // pulls `1 + s` times harder at the same gap and current.
+        let pull = d.max(least_certain);
+        let holds = crate::simulation::actuator::SEQUENCE.len();
+        let spring =
+            pull + fitted_tolerance(m.spring.n_per_m, m.spring.uncertainty_n_per_m, holds - 2);
+        if spring < 1.0 {
+            a.mechanics.spring_n_per_m = m.spring.n_per_m as f32;
+            a.mechanics.preload_n = m.spring.preload_n as f32;
+            a.tolerance.spring = spring as f32;
+        }
+        if let Some(arm) = m.armature {
+            let dof = arm.moves.saturating_sub(1);
+            let mass = pull + fitted_tolerance(arm.mass_kg, arm.mass_uncertainty_kg, dof);
+            if let Some((v, t)) = measures(arm.mass_kg, mass) {
+                a.mechanics.mass_kg = v;
+                a.tolerance.mass = t;
+            }
+            let friction = pull
+                + fitted_tolerance(
+                    arm.friction_n_s_per_m,
+                    arm.friction_uncertainty_n_s_per_m,
+                    dof,
+                );
+            if let Some((v, t)) = measures(arm.friction_n_s_per_m, friction) {
+                a.mechanics.friction_n_s_per_m = v;
+                a.tolerance.friction = t;
+            }
+        }
+        a.plant().map_err(Error::Actuator)?;
     }
     Ok((a, moved))
+}
+
+/// A measured `value` and its relative `tolerance` as the file carries them, where the
+/// measurement tells the quantity from none: its 99 % interval above zero (`value`
+/// positive, `tolerance` below one). An interval that reaches zero (or a fit with no
+/// uncertainty, NaN) has not measured it: `None`, and the file keeps its own value and
+/// tolerance, as without a fit.
+#[expect(clippy::cast_possible_truncation)]
+fn measures(value: f64, tolerance: f64) -> Option<(f32, f32)> {
+    (value > 0.0 && tolerance < 1.0).then_some((value as f32, tolerance as f32))
 }

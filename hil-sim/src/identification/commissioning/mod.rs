@@ -28,11 +28,13 @@
 //!
 //! The actuator file a commissioning writes ([`measured`]) carries, for the spring, the
 //! mass and the friction, the tolerance their measurement leaves rather than the
-//! datasheet's: the converters' scale ([`CONVERTER_SCALE`]) and each fit's own 99 %
-//! interval ([`fitted_tolerance`]); for the surfaces what the circuit's readings leave
-//! (see [`measured`]). No class is set from the errors seen on drawn plants: the
-//! `hil-sim commission` table judges each tolerance against the true error on draws the
-//! rule never saw (its rows "error / its tolerance"). `tune` then validates
+//! datasheet's, narrower or wider: the converters' scale ([`CONVERTER_SCALE`]), each
+//! fit's own 99 % interval ([`fitted_tolerance`]) and the uncertainty of the pull they
+//! are read against (the circuit's); for the surfaces what the circuit's readings leave
+//! (see [`measured`]). A value whose 99 % interval reaches zero is not written: the file
+//! keeps its own. No class is set from the errors seen on drawn plants: the
+//! `hil-sim commission` table judges each value written against the true one, over its
+//! tolerance (its rows "written, error / its tolerance"). `tune` then validates
 //! its gains on plants around what was measured, as far off as the measurement may be,
 //! and the controller's robust model is built on the same (the test
 //! `a_light_lightly_damped_product_is_tuned_with_the_tolerances_its_measurement_leaves`).

@@ -99,7 +99,17 @@ struct MechanicsErrors {
     written: [f64; 3],
     /// Whether the file written carries the measured spring's rate, mass and friction
     /// (not its own: the measurement's 99 % interval did not reach zero).
-    measured: [bool; 3],
+    from_measurement: [bool; 3],
+}
+
+impl MechanicsErrors {
+    /// [`MechanicsErrors::written`]'s `q`-th (spring, mass, friction) over the tolerance
+    /// the file written carries for it \[-\]: above one, the true plant is outside.
+    fn written_over_tolerance(&self, q: usize) -> f64 {
+        let t = &self.tolerance;
+        let tolerance = [t.spring, t.mass, t.friction][q];
+        self.written[q] / f64::from(tolerance)
+    }
 }
 
 /// A row of [`MECHANICS`]: its label, its target in the label's unit (none: reported
@@ -117,7 +127,7 @@ const MECHANICS: [MechanicsRow; 15] = [
     (
         "spring rate written, error / its tolerance",
         Some(1.0),
-        |e| e.written[0] / f64::from(e.tolerance.spring),
+        |e| e.written_over_tolerance(0),
     ),
     ("preload error [% of K x stroke]", None, |e| {
         100.0 * e.preload
@@ -127,7 +137,7 @@ const MECHANICS: [MechanicsRow; 15] = [
         100.0 * f64::from(e.tolerance.mass)
     }),
     ("mass written, error / its tolerance", Some(1.0), |e| {
-        e.written[1] / f64::from(e.tolerance.mass)
+        e.written_over_tolerance(1)
     }),
     ("friction error [%]", None, |e| 100.0 * e.friction),
     ("friction error [% of the critical damping]", None, |e| {
@@ -137,7 +147,7 @@ const MECHANICS: [MechanicsRow; 15] = [
         100.0 * f64::from(e.tolerance.friction)
     }),
     ("friction written, error / its tolerance", Some(1.0), |e| {
-        e.written[2] / f64::from(e.tolerance.friction)
+        e.written_over_tolerance(2)
     }),
     ("inductance error at the holds [%]", Some(5.0), |e| {
         100.0 * e.held
@@ -248,7 +258,7 @@ fn mechanics_errors(
             plant.friction_n_s_per_m / f64::from(f.mechanics.friction_n_s_per_m) - 1.0,
         ]
     });
-    let measured = file.as_ref().map_or([false; 3], |f| {
+    let from_measurement = file.as_ref().map_or([false; 3], |f| {
         [
             f.mechanics.spring_n_per_m != a.mechanics.spring_n_per_m,
             f.mechanics.mass_kg != a.mechanics.mass_kg,
@@ -276,7 +286,7 @@ fn mechanics_errors(
         fitted,
         tolerance,
         written,
-        measured,
+        from_measurement,
     }
 }
 
@@ -443,16 +453,14 @@ pub fn run(args: &Args, out: &mut dyn Write) -> anyhow::Result<()> {
     let count = |q: usize, wrote: bool| {
         let of: Vec<_> = mechanics
             .iter()
-            .filter(|e| e.measured[q] == wrote)
+            .filter(|e| e.from_measurement[q] == wrote)
             .collect();
-        let tolerance = |e: &MechanicsErrors| match q {
-            0 => e.tolerance.spring,
-            1 => e.tolerance.mass,
-            _ => e.tolerance.friction,
-        };
         let over = of
             .iter()
-            .filter(|e| e.written[q].abs() > f64::from(tolerance(e)) || e.written[q].is_nan())
+            .filter(|e| {
+                let r = e.written_over_tolerance(q).abs();
+                r > 1.0 || r.is_nan()
+            })
             .count();
         format!("{} ({over} over)", of.len())
     };

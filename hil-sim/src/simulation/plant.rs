@@ -313,6 +313,16 @@ impl Params {
         }
     }
 
+    /// Whether an airgap's surface grows with the gap (a pole whose sides spread): a real
+    /// magnet of such a plant pulls with its growth included
+    /// ([`ForceModel::EnergyConsistent`]); the frozen-surface force leaves it out.
+    #[must_use]
+    pub fn surface_grows(&self) -> bool {
+        self.gaps
+            .iter()
+            .any(|s| matches!(s, Surface::Rectangular { spread, .. } if *spread > 0.0))
+    }
+
     /// The nominal actuator a controller configuration describes (its `f32` values widened
     /// to `f64`), with the given force model. `gaps` equal airgaps of the core's surface
     /// model.

@@ -53,8 +53,8 @@ pub const IRON_SHARE: f32 = 1e-6;
 
 /// The actuator a commissioning measured: `file` (the board's) with the measured resistance
 /// and magnetic circuit, the spring, the mass and the friction where the holds measured
-/// them ([`mechanics`](super::mechanics); below), the tuning dropped (it was for another actuator); and the
-/// factor the two-inductance form's inductances were moved by (below).
+/// them ([`mechanics`](super::mechanics); below), the tuning dropped (it was for another
+/// actuator); and the factor the two-inductance form's inductances were moved by (below).
 ///
 /// The magnetic circuit: with the holds measured, the one fitted to their inductances and
 /// the stops' ([`Circuit::fit`](super::Circuit::fit)), in the file's form: a pole

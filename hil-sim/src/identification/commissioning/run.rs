@@ -188,10 +188,7 @@ impl Specimen {
         }
         // A real magnet pulls with `-dL/dg`, whatever its file: a surface that grows with
         // the gap, drawn so or the file's own, pulls with its growth included.
-        if p.gaps
-            .iter()
-            .any(|s| matches!(s, Surface::Rectangular { spread, .. } if *spread > 0.0))
-        {
+        if p.surface_grows() {
             p.force = ForceModel::EnergyConsistent;
         }
         p.resistance_ohm *= r;

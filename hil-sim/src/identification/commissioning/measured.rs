@@ -80,7 +80,7 @@ pub const IRON_SHARE: f32 = 1e-6;
 /// two degrees of freedom over the four holds, the mass's and the friction's from their
 /// scatter over the moves, the jackknife of [`fit_armature`](super::fit_armature), one
 /// less degree of freedom than moves), plus the circuit's share of the surface tolerance
-/// above (the larger of the form's deviation and the least certain reading): each is
+/// above (the tolerance less the converters' scale, which both carry): each is
 /// read against the pull the circuit gives, and a surface `1 + s` times the written one
 /// pulls `1 + s` times harder at the same gap and current, which scales the spring, the
 /// mass and the friction read against it alike and which no scatter over the holds or
@@ -159,9 +159,12 @@ pub fn measured(
             .min(fitted as f32)
             .max((CONVERTER_SCALE + d) as f32);
         // The pull the spring, the mass and the friction are read against comes from the
-        // circuit, and carries its uncertainty: a surface `1 + s` times the written one
-        // pulls `1 + s` times harder at the same gap and current.
-        let pull = d.max(least_certain);
+        // circuit, and carries the uncertainty the file states for it (the surface
+        // tolerance just written, less the converters' scale they carry already): a
+        // surface `1 + s` times the written one pulls `1 + s` times harder at the same gap
+        // and current. (A probe no cycle agreed on, an infinite uncertainty, weighs
+        // nothing in the circuit's fit and leaves the surface at the file's.)
+        let pull = f64::from(a.tolerance.surface) - CONVERTER_SCALE;
         let holds = crate::simulation::actuator::SEQUENCE.len();
         let spring =
             pull + fitted_tolerance(m.spring.n_per_m, m.spring.uncertainty_n_per_m, holds - 2);
